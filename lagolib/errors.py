@@ -1,0 +1,66 @@
+"""Exceptions and warnings raised by lagolib.
+
+Every problem lagolib detects in its input is reported with one of these classes, and the message
+says *where* (``file:line``, or the edge index and the vertex ids) and *what to do*.  They all
+derive from :class:`LagolibError`, so ``except lagolib.LagolibError`` catches any of them; the
+input-validation errors also derive from :class:`ValueError`.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "LagolibError",
+    "GraphError",
+    "ParseError",
+    "DatasetError",
+    "LagolibWarning",
+    "SkippedLinesWarning",
+]
+
+
+class LagolibError(Exception):
+    """Base class of every error lagolib raises on purpose."""
+
+
+class GraphError(LagolibError, ValueError):
+    """A pose graph (or poses given for it) is invalid.
+
+    Attributes
+    ----------
+    edge : int or None
+        Index of the offending edge in the graph's edge arrays, when one edge is to blame.
+    """
+
+    def __init__(self, message: str, *, edge: int | None = None):
+        super().__init__(message)
+        self.edge = edge
+
+
+class ParseError(LagolibError, ValueError):
+    """A file could not be read; the message starts with ``path:line:``.
+
+    Attributes
+    ----------
+    path : str
+        The file that was being read.
+    line : int or None
+        1-based line number of the offending line (None for whole-file problems).
+    """
+
+    def __init__(self, path, line: int | None, message: str):
+        self.path = str(path)
+        self.line = line
+        where = f"{self.path}:{line}" if line is not None else self.path
+        super().__init__(f"{where}: {message}")
+
+
+class DatasetError(LagolibError):
+    """A named dataset is unknown, missing from the local mirror, or fails its checksum."""
+
+
+class LagolibWarning(UserWarning):
+    """Base class of lagolib's warnings."""
+
+
+class SkippedLinesWarning(LagolibWarning):
+    """A reader skipped lines on request (``ignore_unknown=True``); the message says how many."""

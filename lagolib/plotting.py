@@ -1,0 +1,135 @@
+"""Pictures of pose graphs and trajectories (matplotlib).
+
+Every function draws into an Axes (a new one when ``ax`` is None), returns it, and never calls
+``plt.show()``: the notebook or script decides when to show.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["plot_graph", "plot_trajectories", "plot_poses"]
+
+
+def _axes(ax):
+    if ax is None:
+        import matplotlib.pyplot as plt
+
+        _, ax = plt.subplots(figsize=(6, 6))
+    return ax
+
+
+def _segments(poses, edges):
+    return np.stack([poses[edges[:, 0], :2], poses[edges[:, 1], :2]], axis=1)
+
+
+def plot_graph(graph, poses=None, ax=None, *, odometry_kw=None, loop_kw=None, vertices=False,
+               title=None):
+    """Draw a pose graph: odometric edges solid, loop closures dotted (as in Carlone et al. Fig. 1).
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    poses : array_like, shape (n, 3), optional
+        Where to draw the vertices; default ``graph.poses``.
+    ax : matplotlib.axes.Axes, optional
+    odometry_kw, loop_kw : dict, optional
+        Extra LineCollection properties for the two kinds of edge.
+    vertices : bool
+        Also mark every vertex with a dot.
+    title : str, optional
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    from matplotlib.collections import LineCollection
+
+    ax = _axes(ax)
+    poses = graph.poses if poses is None else np.asarray(poses, dtype=float)
+    odo = graph.odometric
+    style = {"colors": "tab:blue", "linewidths": 1.0, "label": f"odometric ({int(odo.sum())})"}
+    style.update(odometry_kw or {})
+    ax.add_collection(LineCollection(_segments(poses, graph.edges[odo]), **style))
+    style = {
+        "colors": "tab:red", "linewidths": 0.6, "linestyles": ":", "alpha": 0.8,
+        "label": f"loop closures ({int((~odo).sum())})",
+    }
+    style.update(loop_kw or {})
+    ax.add_collection(LineCollection(_segments(poses, graph.edges[~odo]), **style))
+    if vertices:
+        ax.plot(poses[:, 0], poses[:, 1], ".", color="k", markersize=2)
+    ax.autoscale_view()
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="best", fontsize="small")
+    if title:
+        ax.set_title(title)
+    return ax
+
+
+def plot_trajectories(trajectories, ax=None, *, title=None, **kw):
+    """Draw several trajectories for comparison.
+
+    Parameters
+    ----------
+    trajectories : dict of str -> array_like (n, 3) or PoseGraph
+        Label to poses (a PoseGraph contributes its ``poses``), drawn as lines in id order.
+    ax : matplotlib.axes.Axes, optional
+    title : str, optional
+    **kw
+        Passed to every ``ax.plot`` call.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = _axes(ax)
+    for label, value in trajectories.items():
+        if hasattr(value, "poses") and hasattr(value, "order"):
+            poses = value.poses[np.argsort(value.ids, kind="stable")]
+        else:
+            poses = np.asarray(value, dtype=float)
+        ax.plot(poses[:, 0], poses[:, 1], label=label, **kw)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="best", fontsize="small")
+    if title:
+        ax.set_title(title)
+    return ax
+
+
+def plot_poses(poses, ax=None, *, length=None, labels=None, color="k", **kw):
+    """Draw poses as arrows (position and heading), e.g. to illustrate compounding.
+
+    Parameters
+    ----------
+    poses : array_like, shape (k, 3)
+    ax : matplotlib.axes.Axes, optional
+    length : float, optional
+        Arrow length; default a tenth of the extent of the positions (at least 0.2).
+    labels : sequence of str, optional
+        Text written next to each pose.
+    color : color
+    **kw
+        Passed to ``ax.quiver``.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = _axes(ax)
+    p = np.atleast_2d(np.asarray(poses, dtype=float))
+    if length is None:
+        extent = np.ptp(p[:, :2], axis=0).max() if len(p) > 1 else 1.0
+        length = max(0.1 * extent, 0.2)
+    ax.quiver(p[:, 0], p[:, 1], length * np.cos(p[:, 2]), length * np.sin(p[:, 2]),
+              angles="xy", scale_units="xy", scale=1, color=color, **kw)
+    ax.plot(p[:, 0], p[:, 1], "o", color=color, markersize=3)
+    for text, q in zip(labels or [], p):
+        ax.annotate(text, (q[0], q[1]), textcoords="offset points", xytext=(5, -12))
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
+    return ax

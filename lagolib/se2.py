@@ -1,0 +1,201 @@
+"""Planar poses: the group SE(2) as used by all three sources.
+
+A pose is a vector ``p = (x, y, theta)``: the position ``rho = (x, y)`` of a robot and its heading
+``theta``.  Every function here is vectorized over leading dimensions: an array of shape
+``(..., 3)`` is a stack of poses, and arguments broadcast against each other like numpy arrays.
+
+The operations are the ones of the lecture notes' "Transformations" slide and of Carlone et al.
+2011, eq. (1):
+
+* ``v2t`` / ``t2v`` convert between the vector ``(x, y, theta)`` and the homogeneous matrix
+  ``[[R(theta), rho], [0, 0, 1]]``;
+* ``compose(a, b)`` is ``a ⊕ b`` (``v2t(a) @ v2t(b)``): pose ``b``, given in the frame of ``a``,
+  expressed in the world frame;
+* ``inverse(p)`` is ``⊖p`` (``v2t(p)^-1``);
+* ``between(p_i, p_j)`` is ``p_j ⊖ p_i`` (``v2t(p_i)^-1 v2t(p_j)``): where ``j`` is, seen from
+  ``i``.  This is what a relative pose measurement ``z_ij`` measures.
+
+Angles returned by these functions are wrapped to ``(-pi, pi]``.
+
+Examples
+--------
+>>> import numpy as np
+>>> from lagolib import se2
+>>> a = np.array([1.0, 2.0, np.pi / 2])
+>>> b = np.array([1.0, 0.0, 0.0])
+>>> se2.compose(a, b)             # one metre forward from a, which faces +y
+array([1.        , 3.        , 1.57079633])
+>>> se2.between(a, se2.compose(a, b)).round(12)
+array([1., 0., 0.])
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["wrap_angle", "rotation", "v2t", "t2v", "compose", "inverse", "between"]
+
+_TWO_PI = 2.0 * np.pi
+
+
+def wrap_angle(theta):
+    """Wrap angles to the interval ``(-pi, pi]``.
+
+    Angles already inside the interval are returned unchanged, bit for bit (so tiny angles keep
+    all their digits); the others are shifted by the multiple of ``2 pi`` that brings them in.
+
+    Parameters
+    ----------
+    theta : array_like, shape (...)
+        Angles in radians.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The wrapped angles; ``-pi`` maps to ``+pi``.
+
+    Examples
+    --------
+    >>> wrap_angle([np.pi, -np.pi, 3 * np.pi / 2]).tolist()
+    [3.141592653589793, 3.141592653589793, -1.5707963267948966]
+    >>> float(wrap_angle(1e-300)) == 1e-300   # inside the interval: untouched, every digit kept
+    True
+    """
+    theta = np.asarray(theta, dtype=float)
+    outside = (theta > np.pi) | (theta <= -np.pi)
+    if not np.any(outside):
+        return theta.copy()
+    wrapped = np.pi - np.mod(np.pi - theta, _TWO_PI)
+    return np.where(outside, wrapped, theta)
+
+
+def rotation(theta):
+    """Planar rotation matrices ``R(theta) = [[cos, -sin], [sin, cos]]``.
+
+    Parameters
+    ----------
+    theta : array_like, shape (...)
+
+    Returns
+    -------
+    ndarray, shape (..., 2, 2)
+    """
+    theta = np.asarray(theta, dtype=float)
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
+
+
+def _as_poses(p, name="pose"):
+    p = np.asarray(p, dtype=float)
+    if p.shape[-1:] != (3,):
+        raise ValueError(f"{name} must have shape (..., 3) as (x, y, theta); got shape {p.shape}")
+    return p
+
+
+def v2t(p):
+    """Pose vector to homogeneous transform (lecture notes, "Transformations").
+
+    Parameters
+    ----------
+    p : array_like, shape (..., 3)
+        Poses ``(x, y, theta)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        ``[[cos, -sin, x], [sin, cos, y], [0, 0, 1]]``.
+    """
+    p = _as_poses(p)
+    T = np.zeros(p.shape[:-1] + (3, 3))
+    T[..., :2, :2] = rotation(p[..., 2])
+    T[..., :2, 2] = p[..., :2]
+    T[..., 2, 2] = 1.0
+    return T
+
+
+def t2v(T):
+    """Homogeneous transform to pose vector, the inverse of :func:`v2t`.
+
+    Parameters
+    ----------
+    T : array_like, shape (..., 3, 3)
+        Homogeneous planar transforms (the rotation block must be a rotation).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``(T[0, 2], T[1, 2], atan2(T[1, 0], T[0, 0]))``; the angle is in ``(-pi, pi]``.
+    """
+    T = np.asarray(T, dtype=float)
+    if T.shape[-2:] != (3, 3):
+        raise ValueError(f"T must have shape (..., 3, 3); got shape {T.shape}")
+    theta = wrap_angle(np.arctan2(T[..., 1, 0], T[..., 0, 0]))
+    return np.stack([T[..., 0, 2], T[..., 1, 2], theta], axis=-1)
+
+
+def compose(a, b):
+    """Pose compounding ``a ⊕ b``: ``b`` (given in the frame of ``a``) in the world frame.
+
+    ``compose(a, b) == t2v(v2t(a) @ v2t(b))`` = ``[rho_a + R(theta_a) rho_b; theta_a + theta_b]``.
+
+    Parameters
+    ----------
+    a, b : array_like, shape (..., 3)
+        Broadcast against each other.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+    """
+    a, b = _as_poses(a, "a"), _as_poses(b, "b")
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
+    y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
+    return np.stack([x, y, wrap_angle(a[..., 2] + b[..., 2])], axis=-1)
+
+
+def inverse(p):
+    """Inverse pose ``⊖p`` = ``t2v(v2t(p)^-1)`` = ``[-R(theta)^T rho; -theta]``.
+
+    Parameters
+    ----------
+    p : array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+    """
+    p = _as_poses(p)
+    c, s = np.cos(p[..., 2]), np.sin(p[..., 2])
+    x = -(c * p[..., 0] + s * p[..., 1])
+    y = -(-s * p[..., 0] + c * p[..., 1])
+    return np.stack([x, y, wrap_angle(-p[..., 2])], axis=-1)
+
+
+def between(p_i, p_j):
+    """Relative pose ``p_j ⊖ p_i``: pose ``j`` expressed in the frame of pose ``i``.
+
+    Carlone et al. 2011, eq. (1)::
+
+        p_j ⊖ p_i = [ R_i^T (rho_j - rho_i) ;  theta_j - theta_i ]
+
+    which equals ``t2v(v2t(p_i)^-1 v2t(p_j))`` (the lecture notes' ``X_i^-1 X_j``).  The angle is
+    wrapped to ``(-pi, pi]``.
+
+    Parameters
+    ----------
+    p_i, p_j : array_like, shape (..., 3)
+        Broadcast against each other.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+    """
+    p_i, p_j = _as_poses(p_i, "p_i"), _as_poses(p_j, "p_j")
+    c, s = np.cos(p_i[..., 2]), np.sin(p_i[..., 2])
+    dx = p_j[..., 0] - p_i[..., 0]
+    dy = p_j[..., 1] - p_i[..., 1]
+    # eq. (1): R_i^T (rho_j - rho_i)
+    x = c * dx + s * dy
+    y = -s * dx + c * dy
+    return np.stack([x, y, wrap_angle(p_j[..., 2] - p_i[..., 2])], axis=-1)

@@ -1,0 +1,251 @@
+"""Synthetic worlds: a robot drives, measures its motion and recognises places it has seen.
+
+Each world returns a :class:`Simulation`: the noisy :class:`~lagolib.graph.PoseGraph` (its poses
+are the odometry guess — the noisy odometry composed from the true first pose) and the ground-truth
+poses.  Everything random comes from one ``numpy.random.Generator`` (pass a seed or a Generator as
+``rng``), so a world is reproducible from its seed.
+
+Measurements follow Carlone et al. 2011, §III: ``xi_ij = (p_j ⊖ p_i) + eps_ij`` with
+``eps_ij ~ N(0, P_ij)``, and two noise models (§V):
+
+* ``noise="fixed"``: ``P_ij = diag(sigma_xy², sigma_xy², sigma_theta²)`` on every edge;
+* ``noise="proportional"``: "uncertainties proportional to the respective measurements" —
+  ``sigma = sigma_xy * max(|dρ|, floor)`` for the position and
+  ``sigma_theta * max(|dθ|, floor)`` for the angle, so longer motions are less certain.
+
+Translation noise is isotropic on every edge, so the information matrix is the same whether the
+error is written in frame ``i`` or in the measurement's frame (TORO and g2o agree).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import se2
+from .graph import PoseGraph
+
+__all__ = ["Simulation", "measure", "loop_world", "manhattan_world", "grid_world"]
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """A simulated pose graph and the truth it was measured from.
+
+    Attributes
+    ----------
+    graph : PoseGraph
+        Noisy measurements; ``graph.poses`` is the odometry guess.
+    truth : ndarray, shape (n, 3)
+        Ground-truth poses, angles wrapped to ``(-pi, pi]``.
+    """
+
+    graph: PoseGraph
+    truth: np.ndarray
+
+
+def measure(truth, edges, *, rng=0, sigma_xy=0.05, sigma_theta=0.01, noise="fixed", floor=0.1,
+            noiseless=False):
+    """Measure ``edges`` between ``truth`` poses with Gaussian noise; returns a :class:`Simulation`.
+
+    Parameters
+    ----------
+    truth : array_like, shape (n, 3)
+    edges : array_like of int, shape (m, 2)
+        ``(i, j)``: measure pose ``j`` in the frame of ``i``.
+    rng : int or numpy.random.Generator
+    sigma_xy, sigma_theta : float
+        Standard deviations (``"fixed"``), or per metre / per radian (``"proportional"``).
+    noise : {"fixed", "proportional"}
+    floor : float
+        Smallest motion used to scale the ``"proportional"`` noise (keeps straight motions from
+        having infinite rotational information).
+    noiseless : bool
+        Keep the information matrices of the noise model but add no noise (for exact-recovery
+        tests).
+
+    Returns
+    -------
+    Simulation
+    """
+    rng = np.random.default_rng(rng)
+    truth = np.asarray(truth, dtype=float)
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    z = se2.between(truth[edges[:, 0]], truth[edges[:, 1]])  # p_j ⊖ p_i, Carlone eq. (1)
+    m = len(edges)
+    if noise == "fixed":
+        sxy = np.full(m, float(sigma_xy))
+        sth = np.full(m, float(sigma_theta))
+    elif noise == "proportional":
+        sxy = sigma_xy * np.maximum(np.hypot(z[:, 0], z[:, 1]), floor)
+        sth = sigma_theta * np.maximum(np.abs(z[:, 2]), floor)
+    else:
+        raise ValueError(f"noise must be 'fixed' or 'proportional'; got {noise!r}")
+    if np.any(sxy <= 0) or np.any(sth <= 0):
+        raise ValueError("sigma_xy and sigma_theta must be positive (use noiseless=True for exact data)")
+    sigma = np.column_stack([sxy, sxy, sth])
+    eps = rng.standard_normal((m, 3)) * sigma
+    if not noiseless:
+        z = z + eps
+        z[:, 2] = se2.wrap_angle(z[:, 2])
+    information = np.zeros((m, 3, 3))
+    information[:, [0, 1, 2], [0, 1, 2]] = 1.0 / sigma**2
+    start = PoseGraph(np.tile(truth[0], (len(truth), 1)), edges, z, information)
+    graph = start.with_poses(start.odometry_guess())
+    truth = truth.copy()
+    truth[:, 2] = se2.wrap_angle(truth[:, 2])
+    return Simulation(graph, truth)
+
+
+def _drive(controls, start=(0.0, 0.0, 0.0)):
+    """Compose relative motions ``u_k`` from ``start``: ``x_{k+1} = x_k ⊕ u_k``; shape (K+1, 3)."""
+    poses = [np.asarray(start, dtype=float)]
+    for u in controls:
+        poses.append(se2.compose(poses[-1], u))
+    return np.array(poses)
+
+
+def loop_world(*, laps=4, poses_per_lap=40, shape="square", step=1.0, closure_probability=1.0,
+               rng=0, **noise):
+    """A robot driving the same closed loop several times.
+
+    Pose ``k`` (``k >= poses_per_lap``) sees the place of pose ``k - poses_per_lap`` again; each
+    such loop closure is kept with ``closure_probability``.  After several laps the robot's
+    accumulated heading has grown by ``2 pi`` per lap while every loop closure measures a small
+    angle — the wraparound that LAGO's regularization handles (Carlone et al. 2011, §IV-E).
+
+    Parameters
+    ----------
+    laps : int
+    poses_per_lap : int
+        For ``shape="square"`` a multiple of 4.
+    shape : {"square", "circle"}
+        ``"square"``: straight sides, a left turn of ``pi/2`` at each corner; ``"circle"``: a regular
+        polygon, turning ``2 pi / poses_per_lap`` at every pose.
+    step : float
+        Distance between consecutive poses.
+    closure_probability : float
+    rng : int or numpy.random.Generator
+    **noise
+        ``sigma_xy``, ``sigma_theta``, ``noise``, ``floor``, ``noiseless``: see :func:`measure`.
+
+    Returns
+    -------
+    Simulation
+        ``laps * poses_per_lap`` poses.
+    """
+    rng = np.random.default_rng(rng)
+    n = laps * poses_per_lap
+    if shape == "square":
+        if poses_per_lap % 4:
+            raise ValueError(f"a square loop needs poses_per_lap divisible by 4; got {poses_per_lap}")
+        side = poses_per_lap // 4
+        turn = np.where((np.arange(n - 1) + 1) % side == 0, np.pi / 2, 0.0)
+    elif shape == "circle":
+        turn = np.full(n - 1, 2 * np.pi / poses_per_lap)
+    else:
+        raise ValueError(f"shape must be 'square' or 'circle'; got {shape!r}")
+    controls = np.column_stack([np.full(n - 1, step), np.zeros(n - 1), turn])
+    truth = _drive(controls)
+    odo = np.column_stack([np.arange(n - 1), np.arange(1, n)])
+    later = np.arange(poses_per_lap, n)
+    keep = rng.random(later.size) < closure_probability
+    loops = np.column_stack([later[keep] - poses_per_lap, later[keep]])
+    return measure(truth, np.vstack([odo, loops]), rng=rng, **noise)
+
+
+def manhattan_world(*, n_poses=200, extent=6, step=1.0, turn_probability=0.3, closure_radius=0.5,
+                    closure_probability=0.5, min_separation=10, rng=0, **noise):
+    """A random walk on a square lattice with loop closures at revisited places (after Olson's M3500).
+
+    At every pose the robot moves ``step`` forward and then keeps its heading or turns by
+    ``±pi/2`` (each turn with probability ``turn_probability / 2``), turning back when the next
+    move would leave the ``extent × extent`` lattice.  When it stands within ``closure_radius``
+    of an earlier pose at least ``min_separation`` poses back, a loop closure from that earlier
+    pose is added with ``closure_probability``.
+
+    Parameters
+    ----------
+    n_poses : int
+    extent : int
+        Lattice points per side.
+    step : float
+    turn_probability, closure_radius, closure_probability : float
+    min_separation : int
+    rng : int or numpy.random.Generator
+    **noise
+        See :func:`measure`.
+
+    Returns
+    -------
+    Simulation
+    """
+    rng = np.random.default_rng(rng)
+    headings = np.array([0.0, np.pi / 2, np.pi, -np.pi / 2])
+    cell = np.zeros(2, dtype=np.int64)
+    h = 0  # index into headings
+    unit = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]])
+    cells, hs = [cell.copy()], [h]
+    for _ in range(n_poses - 1):
+        cell = cell + unit[h]
+        r = rng.random()
+        if r < turn_probability / 2:
+            h = (h + 1) % 4
+        elif r < turn_probability:
+            h = (h - 1) % 4
+        # turn back inside when the next move would leave the lattice
+        options = [h, (h + 1) % 4, (h - 1) % 4, (h + 2) % 4]
+        for cand in options:
+            nxt = cell + unit[cand]
+            if np.all((nxt >= 0) & (nxt < extent)):
+                h = cand
+                break
+        cells.append(cell.copy())
+        hs.append(h)
+    cells = np.array(cells, dtype=float) * step
+    truth = np.column_stack([cells, headings[hs]])
+    pairs = []
+    for k in range(min_separation, n_poses):
+        d = np.hypot(*(cells[: k - min_separation + 1] - cells[k]).T)
+        for j in np.flatnonzero(d <= closure_radius):
+            if rng.random() < closure_probability:
+                pairs.append((j, k))
+    odo = np.column_stack([np.arange(n_poses - 1), np.arange(1, n_poses)])
+    edges = np.vstack([odo, np.array(pairs, dtype=np.int64).reshape(-1, 2)])
+    return measure(truth, edges, rng=rng, **noise)
+
+
+def grid_world(*, rows=10, cols=10, step=1.0, closure_probability=0.5, rng=0, **noise):
+    """A robot sweeping a ``rows × cols`` grid row by row (100 poses by default).
+
+    After Lodi Rizzini's test network (§IV-B, Fig. 2: "100 poses corresponding to a robot moving on
+    a grid").  The robot visits every grid point once, boustrophedon: left to right on even rows,
+    right to left on odd ones; its heading is the direction to the next point.  Each pair of
+    vertically adjacent points that are not consecutive in time is a loop closure with
+    ``closure_probability``.
+
+    Returns
+    -------
+    Simulation
+        ``rows * cols`` poses.
+    """
+    rng = np.random.default_rng(rng)
+    r = np.repeat(np.arange(rows), cols)
+    c = np.tile(np.arange(cols), rows)
+    c = np.where(r % 2 == 0, c, cols - 1 - c)
+    xy = np.column_stack([c, r]).astype(float) * step
+    d = np.diff(xy, axis=0)
+    heading = np.arctan2(d[:, 1], d[:, 0])
+    heading = np.append(heading, heading[-1])
+    truth = np.column_stack([xy, heading])
+    n = rows * cols
+    index = np.empty((rows, cols), dtype=np.int64)
+    index[r, c] = np.arange(n)
+    below, above = index[:-1].ravel(), index[1:].ravel()
+    non_consecutive = np.abs(above - below) > 1
+    below, above = below[non_consecutive], above[non_consecutive]
+    keep = rng.random(below.size) < closure_probability
+    loops = np.sort(np.column_stack([below[keep], above[keep]]), axis=1)
+    odo = np.column_stack([np.arange(n - 1), np.arange(1, n)])
+    return measure(truth, np.vstack([odo, loops]), rng=rng, **noise)
