@@ -29,11 +29,13 @@ def main():
         import gtsam
     except ImportError:  # pragma: no cover
         gtsam = None
-    print(f"{'file':<12} {'edges':>6} {'lagolib [ms]':>13} {'gtsam [ms]':>11} {'ratio':>6} {'peak MiB':>9}")
+    print(
+        f"{'file':<12} {'edges':>6} {'lagolib [ms]':>13} {'gtsam [ms]':>11} {'ratio':>6} {'peak MiB':>9}"
+    )
     for name in ["intel", "m3500", "csail_toro", "city10000"]:
         path = str(datasets.path(name))
         g = lagolib.read(path)
-        t_ours = best_of(lambda: lagolib.read(path))
+        t_ours = best_of(lambda path=path: lagolib.read(path))
         tracemalloc.start()
         lagolib.read(path)
         peak = tracemalloc.get_traced_memory()[1] / 2**20
@@ -42,11 +44,13 @@ def main():
             t_peer = float("nan")
         elif path.endswith(".graph"):
             fmt = gtsam.NoiseFormat.NoiseFormatTORO
-            t_peer = best_of(lambda: gtsam.load2D(path, None, 10**9, False, False, fmt))
+            t_peer = best_of(lambda p=path, f=fmt: gtsam.load2D(p, None, 10**9, False, False, f))
         else:
-            t_peer = best_of(lambda: gtsam.readG2o(path, False))
-        print(f"{name:<12} {g.m:>6} {1e3 * t_ours:>13.1f} {1e3 * t_peer:>11.1f} "
-              f"{t_ours / t_peer:>6.2f} {peak:>9.1f}")
+            t_peer = best_of(lambda p=path: gtsam.readG2o(p, False))
+        print(
+            f"{name:<12} {g.m:>6} {1e3 * t_ours:>13.1f} {1e3 * t_peer:>11.1f} "
+            f"{t_ours / t_peer:>6.2f} {peak:>9.1f}"
+        )
 
 
 if __name__ == "__main__":

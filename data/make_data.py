@@ -18,18 +18,42 @@ from lagolib import simulate, write_g2o, write_poses
 WORLDS = {
     "square_loop": (
         simulate.loop_world,
-        dict(laps=4, poses_per_lap=40, shape="square", step=1.0, closure_probability=1.0,
-             sigma_xy=0.05, sigma_theta=0.01, rng=20110627),
+        dict(
+            laps=4,
+            poses_per_lap=40,
+            shape="square",
+            step=1.0,
+            closure_probability=1.0,
+            sigma_xy=0.05,
+            sigma_theta=0.01,
+            rng=20110627,
+        ),
     ),
     "manhattan200": (
         simulate.manhattan_world,
-        dict(n_poses=200, extent=6, step=1.0, turn_probability=0.3, closure_probability=0.5,
-             min_separation=10, sigma_xy=0.05, sigma_theta=0.01, rng=3500),
+        dict(
+            n_poses=200,
+            extent=6,
+            step=1.0,
+            turn_probability=0.3,
+            closure_probability=0.5,
+            min_separation=10,
+            sigma_xy=0.05,
+            sigma_theta=0.01,
+            rng=3500,
+        ),
     ),
     "grid100": (
         simulate.grid_world,
-        dict(rows=10, cols=10, step=1.0, closure_probability=0.5, sigma_xy=0.05,
-             sigma_theta=0.01, rng=100),
+        dict(
+            rows=10,
+            cols=10,
+            step=1.0,
+            closure_probability=0.5,
+            sigma_xy=0.05,
+            sigma_theta=0.01,
+            rng=100,
+        ),
     ),
 }
 

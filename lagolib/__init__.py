@@ -23,7 +23,14 @@ plotting
 """
 
 from . import datasets, plotting, se2, simulate
-from .errors import DatasetError, GraphError, LagolibError, LagolibWarning, ParseError, SkippedLinesWarning
+from .errors import (
+    DatasetError,
+    GraphError,
+    LagolibError,
+    LagolibWarning,
+    ParseError,
+    SkippedLinesWarning,
+)
 from .graph import PoseGraph, chi2, residuals
 from .io import read, read_g2o, read_poses, read_toro, write, write_g2o, write_poses, write_toro
 from .plotting import plot_graph, plot_poses, plot_trajectories
@@ -31,9 +38,28 @@ from .plotting import plot_graph, plot_poses, plot_trajectories
 __version__ = "0.1.0"
 
 __all__ = [
-    "se2", "simulate", "datasets", "plotting",
-    "PoseGraph", "residuals", "chi2",
-    "read", "write", "read_g2o", "write_g2o", "read_toro", "write_toro", "read_poses", "write_poses",
-    "plot_graph", "plot_trajectories", "plot_poses",
-    "LagolibError", "GraphError", "ParseError", "DatasetError", "LagolibWarning", "SkippedLinesWarning",
+    "se2",
+    "simulate",
+    "datasets",
+    "plotting",
+    "PoseGraph",
+    "residuals",
+    "chi2",
+    "read",
+    "write",
+    "read_g2o",
+    "write_g2o",
+    "read_toro",
+    "write_toro",
+    "read_poses",
+    "write_poses",
+    "plot_graph",
+    "plot_trajectories",
+    "plot_poses",
+    "LagolibError",
+    "GraphError",
+    "ParseError",
+    "DatasetError",
+    "LagolibWarning",
+    "SkippedLinesWarning",
 ]

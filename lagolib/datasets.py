@@ -42,7 +42,17 @@ from .errors import DatasetError
 from .graph import PoseGraph
 from .io import read, read_poses
 
-__all__ = ["Dataset", "Example", "names", "info", "path", "available", "load", "example", "examples"]
+__all__ = [
+    "Dataset",
+    "Example",
+    "names",
+    "info",
+    "path",
+    "available",
+    "load",
+    "example",
+    "examples",
+]
 
 
 @dataclass(frozen=True)
@@ -91,74 +101,176 @@ _SPARSIFY = (
 _REGISTRY = {
     d.name: d
     for d in [
-        Dataset("intel", "carlone-nano-pgo/input_INTEL_g2o.g2o",
-                "e648e42b1f24ab01cce76f56c8d8dad0b606f712afe2b92356bf26f195c602be",
-                _NANO + "input_INTEL_g2o.g2o", "graph", 1228, 1483,
-                "Intel Research Lab, Carlone's version (the INTEL of Carlone et al. 2011)"),
-        Dataset("m3500", "carlone-nano-pgo/input_M3500_g2o.g2o",
-                "1883593980e602b11bd0ba95799c969e59ee8a6892bdb2a3a48f495459efe9d8",
-                _NANO + "input_M3500_g2o.g2o", "graph", 3500, 5453,
-                "Olson's Manhattan world M3500, Carlone's version (duplicate edges merged)"),
-        Dataset("csail_toro", "carlone-nano-pgo/CSAIL_P_toro.graph",
-                "fcf4de76b262e7f58ea64b8c5db806fec926a519d2f5d85fcc9c553f8f82fa98",
-                _NANO + "CSAIL_P_toro.graph", "graph", 1045, 1172,
-                "MIT CSAIL building, TORO format (frame-i information)"),
-        Dataset("fr079", "carlone-nano-pgo/FR079_P_toro.graph",
-                "ba53624ae4ed843258359c8e5713e7456943b6daf2e4a17b800a90e170d7e659",
-                _NANO + "FR079_P_toro.graph", "graph", 989, 1217,
-                "Freiburg building 079, TORO format"),
-        Dataset("csail", "se-sync/CSAIL.g2o",
-                "66d99ac857a9849d814d214a9ebd0d4876d5d40f0a37be9330c1ff6e6e9daaa6",
-                _SESYNC + "CSAIL.g2o", "graph", 0, 1172,
-                "MIT CSAIL building, SE-Sync's g2o version (edges only)"),
-        Dataset("mit", "se-sync/MIT.g2o",
-                "e5922be0d0689c7a5bc04c58adf3a8e697e240bdd7691cc4218470eaf92956eb",
-                _SESYNC + "MIT.g2o", "graph", 808, 827,
-                "MIT Killian Court (Carlone's MITb)"),
-        Dataset("city10000", "se-sync/city10000.g2o",
-                "df5988994339e990be198a36e7f640e31a5a1b26df3ed400363fafc49d5ca630",
-                _SESYNC + "city10000.g2o", "graph", 10000, 20687,
-                "Kaess's simulated city10000 (iSAM)"),
-        Dataset("intel_sesync", "se-sync/intel.g2o",
-                "3e0724c048e0ba524be9dd268a8b78e19a2497043143584cbb61310638b15c4b",
-                _SESYNC + "intel.g2o", "graph", 1728, 2512,
-                "SE-Sync's intel (a different graph from Carlone's INTEL)"),
-        Dataset("manhattan", "se-sync/manhattan.g2o",
-                "6ae8d30971720c1af24a00c4b2dd5c5ddafbbbe488bfc771145c47decbffb248",
-                _SESYNC + "manhattan.g2o", "graph", 0, 5453,
-                "SE-Sync's M3500 (edges only, anisotropic information)"),
-        Dataset("intel_g2o", "vertigo/intel/intel.g2o",
-                "4d87aaf96e1e04e47c723c371386b15358c71e98c05dad16b786d585f9fd70ff",
-                _VERTIGO + "intel/originalDataset/intel.g2o", "graph", 943, 1837,
-                "intel as distributed with g2o (vertigo's copy)"),
-        Dataset("intel_sparsify", "sparsify-posegraph/intel.g2o",
-                "09b99e9c7e12343a6ee69eaff57e450f055a44bcca0ba44a10b0bd2fd34ed08c",
-                _SPARSIFY + "intel.g2o", "graph", 943, 1833,
-                "intel as distributed with g2o (SparsifyPoseGraph's copy)"),
-        Dataset("m3500_olson", "vertigo/manhattan/Olson/manhattanOlson3500.g2o",
-                "87a3ea13dbde2c4b164ddbefc74948a4b14b5b1b93c0829378c9696925fa7329",
-                _VERTIGO + "manhattan/originalDataset/Olson/manhattanOlson3500.g2o", "graph", 3500, 5598,
-                "Olson's original M3500 (duplicates kept, unwrapped angles)"),
-        Dataset("m3500_olson_g2o", "vertigo/manhattan/g2o/manhattanOlson3500.g2o",
-                "84d6ac6faffe2f120bd8df6f80185db0fafacdd9c0eedfa118ae475e035f9f40",
-                _VERTIGO + "manhattan/originalDataset/g2o/manhattanOlson3500.g2o", "graph", 3500, 5598,
-                "M3500 as distributed with g2o (non-odometric initial guess)"),
-        Dataset("m3500_olson_truth", "vertigo/manhattan/groundTruth/manhattanOlson3500_nodes_groundTruth.dat",
-                "8512b270849f2571ace2f5fac486d3ee9b686e8334c7c55a6f96c2025a413181",
-                _VERTIGO + "manhattan/groundTruth/manhattanOlson3500_nodes_groundTruth.dat", "poses", 3500, 0,
-                "ground-truth poses of Olson's M3500"),
-        Dataset("ring", "vertigo/ring/ring.g2o",
-                "786a004adc98e7a530d3ba3c11200f7d8ba6cad6ca59929d64e1cbbf164d49aa",
-                _VERTIGO + "ring/originalDataset/ring.g2o", "graph", 434, 459,
-                "Sünderhauf's ring (loop closures stored j < i)"),
-        Dataset("ring_truth_graph", "vertigo/ring/groundTruth/ring.g2o",
-                "7201bbf248670d71bd919062a806efa95589d01c26d1d1a12cee83f16f130a05",
-                _VERTIGO + "ring/groundTruth/ring.g2o", "graph", 434, 459,
-                "ring, noise-free measurements at the true poses"),
-        Dataset("ring_truth", "vertigo/ring/groundTruth/poses.txt",
-                "89294c68515cf833362d5f94f35a38879745f7d0a9fd22c86ce880b864fa3fe0",
-                _VERTIGO + "ring/groundTruth/poses.txt", "poses", 434, 0,
-                "ground-truth poses of ring"),
+        Dataset(
+            "intel",
+            "carlone-nano-pgo/input_INTEL_g2o.g2o",
+            "e648e42b1f24ab01cce76f56c8d8dad0b606f712afe2b92356bf26f195c602be",
+            _NANO + "input_INTEL_g2o.g2o",
+            "graph",
+            1228,
+            1483,
+            "Intel Research Lab, Carlone's version (the INTEL of Carlone et al. 2011)",
+        ),
+        Dataset(
+            "m3500",
+            "carlone-nano-pgo/input_M3500_g2o.g2o",
+            "1883593980e602b11bd0ba95799c969e59ee8a6892bdb2a3a48f495459efe9d8",
+            _NANO + "input_M3500_g2o.g2o",
+            "graph",
+            3500,
+            5453,
+            "Olson's Manhattan world M3500, Carlone's version (duplicate edges merged)",
+        ),
+        Dataset(
+            "csail_toro",
+            "carlone-nano-pgo/CSAIL_P_toro.graph",
+            "fcf4de76b262e7f58ea64b8c5db806fec926a519d2f5d85fcc9c553f8f82fa98",
+            _NANO + "CSAIL_P_toro.graph",
+            "graph",
+            1045,
+            1172,
+            "MIT CSAIL building, TORO format (frame-i information)",
+        ),
+        Dataset(
+            "fr079",
+            "carlone-nano-pgo/FR079_P_toro.graph",
+            "ba53624ae4ed843258359c8e5713e7456943b6daf2e4a17b800a90e170d7e659",
+            _NANO + "FR079_P_toro.graph",
+            "graph",
+            989,
+            1217,
+            "Freiburg building 079, TORO format",
+        ),
+        Dataset(
+            "csail",
+            "se-sync/CSAIL.g2o",
+            "66d99ac857a9849d814d214a9ebd0d4876d5d40f0a37be9330c1ff6e6e9daaa6",
+            _SESYNC + "CSAIL.g2o",
+            "graph",
+            0,
+            1172,
+            "MIT CSAIL building, SE-Sync's g2o version (edges only)",
+        ),
+        Dataset(
+            "mit",
+            "se-sync/MIT.g2o",
+            "e5922be0d0689c7a5bc04c58adf3a8e697e240bdd7691cc4218470eaf92956eb",
+            _SESYNC + "MIT.g2o",
+            "graph",
+            808,
+            827,
+            "MIT Killian Court (Carlone's MITb)",
+        ),
+        Dataset(
+            "city10000",
+            "se-sync/city10000.g2o",
+            "df5988994339e990be198a36e7f640e31a5a1b26df3ed400363fafc49d5ca630",
+            _SESYNC + "city10000.g2o",
+            "graph",
+            10000,
+            20687,
+            "Kaess's simulated city10000 (iSAM)",
+        ),
+        Dataset(
+            "intel_sesync",
+            "se-sync/intel.g2o",
+            "3e0724c048e0ba524be9dd268a8b78e19a2497043143584cbb61310638b15c4b",
+            _SESYNC + "intel.g2o",
+            "graph",
+            1728,
+            2512,
+            "SE-Sync's intel (a different graph from Carlone's INTEL)",
+        ),
+        Dataset(
+            "manhattan",
+            "se-sync/manhattan.g2o",
+            "6ae8d30971720c1af24a00c4b2dd5c5ddafbbbe488bfc771145c47decbffb248",
+            _SESYNC + "manhattan.g2o",
+            "graph",
+            0,
+            5453,
+            "SE-Sync's M3500 (edges only, anisotropic information)",
+        ),
+        Dataset(
+            "intel_g2o",
+            "vertigo/intel/intel.g2o",
+            "4d87aaf96e1e04e47c723c371386b15358c71e98c05dad16b786d585f9fd70ff",
+            _VERTIGO + "intel/originalDataset/intel.g2o",
+            "graph",
+            943,
+            1837,
+            "intel as distributed with g2o (vertigo's copy)",
+        ),
+        Dataset(
+            "intel_sparsify",
+            "sparsify-posegraph/intel.g2o",
+            "09b99e9c7e12343a6ee69eaff57e450f055a44bcca0ba44a10b0bd2fd34ed08c",
+            _SPARSIFY + "intel.g2o",
+            "graph",
+            943,
+            1833,
+            "intel as distributed with g2o (SparsifyPoseGraph's copy)",
+        ),
+        Dataset(
+            "m3500_olson",
+            "vertigo/manhattan/Olson/manhattanOlson3500.g2o",
+            "87a3ea13dbde2c4b164ddbefc74948a4b14b5b1b93c0829378c9696925fa7329",
+            _VERTIGO + "manhattan/originalDataset/Olson/manhattanOlson3500.g2o",
+            "graph",
+            3500,
+            5598,
+            "Olson's original M3500 (duplicates kept, unwrapped angles)",
+        ),
+        Dataset(
+            "m3500_olson_g2o",
+            "vertigo/manhattan/g2o/manhattanOlson3500.g2o",
+            "84d6ac6faffe2f120bd8df6f80185db0fafacdd9c0eedfa118ae475e035f9f40",
+            _VERTIGO + "manhattan/originalDataset/g2o/manhattanOlson3500.g2o",
+            "graph",
+            3500,
+            5598,
+            "M3500 as distributed with g2o (non-odometric initial guess)",
+        ),
+        Dataset(
+            "m3500_olson_truth",
+            "vertigo/manhattan/groundTruth/manhattanOlson3500_nodes_groundTruth.dat",
+            "8512b270849f2571ace2f5fac486d3ee9b686e8334c7c55a6f96c2025a413181",
+            _VERTIGO + "manhattan/groundTruth/manhattanOlson3500_nodes_groundTruth.dat",
+            "poses",
+            3500,
+            0,
+            "ground-truth poses of Olson's M3500",
+        ),
+        Dataset(
+            "ring",
+            "vertigo/ring/ring.g2o",
+            "786a004adc98e7a530d3ba3c11200f7d8ba6cad6ca59929d64e1cbbf164d49aa",
+            _VERTIGO + "ring/originalDataset/ring.g2o",
+            "graph",
+            434,
+            459,
+            "Sünderhauf's ring (loop closures stored j < i)",
+        ),
+        Dataset(
+            "ring_truth_graph",
+            "vertigo/ring/groundTruth/ring.g2o",
+            "7201bbf248670d71bd919062a806efa95589d01c26d1d1a12cee83f16f130a05",
+            _VERTIGO + "ring/groundTruth/ring.g2o",
+            "graph",
+            434,
+            459,
+            "ring, noise-free measurements at the true poses",
+        ),
+        Dataset(
+            "ring_truth",
+            "vertigo/ring/groundTruth/poses.txt",
+            "89294c68515cf833362d5f94f35a38879745f7d0a9fd22c86ce880b864fa3fe0",
+            _VERTIGO + "ring/groundTruth/poses.txt",
+            "poses",
+            434,
+            0,
+            "ground-truth poses of ring",
+        ),
     ]
 }
 
@@ -271,11 +383,16 @@ def path(name, *, download=True):
 
     try:
         fetched = pooch.retrieve(
-            d.url, known_hash=f"sha256:{d.sha256}", fname=_cached_name(d), path=cache_dir(),
+            d.url,
+            known_hash=f"sha256:{d.sha256}",
+            fname=_cached_name(d),
+            path=cache_dir(),
             progressbar=False,
         )
     except ValueError as exc:  # pooch's checksum mismatch
-        raise DatasetError(f"download of dataset {name!r} from {d.url} failed its checksum: {exc}") from exc
+        raise DatasetError(
+            f"download of dataset {name!r} from {d.url} failed its checksum: {exc}"
+        ) from exc
     except Exception as exc:
         raise DatasetError(
             f"could not download dataset {name!r} from {d.url}: {exc}; check the network, or set "
@@ -342,7 +459,9 @@ def data_dir():
     for candidate in (here / "_data", here.parent / "data"):
         if (candidate / "square_loop.g2o").is_file():
             return candidate
-    raise DatasetError(f"lagolib's shipped data folder is missing (looked in {here / '_data'} and {here.parent / 'data'})")
+    raise DatasetError(
+        f"lagolib's shipped data folder is missing (looked in {here / '_data'} and {here.parent / 'data'})"
+    )
 
 
 def example(name):

@@ -93,15 +93,17 @@ class PoseGraph:
         if edges.ndim != 2 or edges.shape[1] != 2:
             raise GraphError(f"edges must have shape (m, 2); got {edges.shape}")
         if edges.dtype.kind not in "iu":
-            if edges.dtype.kind == "f" and np.all(np.isfinite(edges)) and np.all(
-                edges == np.round(edges)
+            if (
+                edges.dtype.kind == "f"
+                and np.all(np.isfinite(edges))
+                and np.all(edges == np.round(edges))
             ):
                 edges = edges.astype(np.int64)
             else:
                 raise GraphError(f"edges must hold integer vertex indices; got dtype {edges.dtype}")
         m = edges.shape[0]
-        measurements = np.asarray(measurements, dtype=float).reshape(-1, 3) if m else np.zeros(
-            (0, 3)
+        measurements = (
+            np.asarray(measurements, dtype=float).reshape(-1, 3) if m else np.zeros((0, 3))
         )
         information = np.asarray(information, dtype=float)
         if measurements.shape != (m, 3):
@@ -141,7 +143,9 @@ class PoseGraph:
             )
         uniq, counts = np.unique(self._ids, return_counts=True)
         if np.any(counts > 1):
-            raise GraphError(f"vertex id {uniq[counts > 1][0]} appears more than once; ids must be unique")
+            raise GraphError(
+                f"vertex id {uniq[counts > 1][0]} appears more than once; ids must be unique"
+            )
         out = np.flatnonzero(np.any((self._edges < 0) | (self._edges >= n), axis=1))
         if out.size:
             k = out[0]
@@ -433,7 +437,11 @@ def residuals(graph, poses=None):
     d = rel[:, :2] - z[:, :2]
     c, s = np.cos(z[:, 2]), np.sin(z[:, 2])
     return np.stack(
-        [c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], se2.wrap_angle(rel[:, 2] - z[:, 2])],
+        [
+            c * d[:, 0] + s * d[:, 1],
+            -s * d[:, 0] + c * d[:, 1],
+            se2.wrap_angle(rel[:, 2] - z[:, 2]),
+        ],
         axis=-1,
     )
 

@@ -99,7 +99,8 @@ def _parse_lines(path, fmt, ignore_unknown):
             if tag == etag:
                 if len(tok) != 12:
                     raise ParseError(
-                        path, lineno,
+                        path,
+                        lineno,
                         f"{etag} needs 11 numbers (i j dx dy dtheta and 6 information entries); "
                         f"got {len(tok) - 1}",
                     )
@@ -124,7 +125,9 @@ def _parse_lines(path, fmt, ignore_unknown):
                     else "pass ignore_unknown=True to skip such lines"
                 )
                 raise ParseError(
-                    path, lineno, f"unknown tag {tag!r} in a {fmt} file (expected {vtag} or {etag}); {hint}"
+                    path,
+                    lineno,
+                    f"unknown tag {tag!r} in a {fmt} file (expected {vtag} or {etag}); {hint}",
                 )
     if skipped:
         what = ", ".join(f"{count} {tag}" for tag, count in sorted(skipped.items()))
@@ -196,13 +199,17 @@ def _build(path, fmt, ignore_unknown):
     (v_ids, v_vals, v_lines), (e_ids, e_vals, e_lines) = _parse_lines(path, fmt, ignore_unknown)
     vtag, etag = _TAGS[fmt]
     if not len(v_ids) and not len(e_ids):
-        raise ParseError(path, None, f"no {vtag} or {etag} lines: the file is empty or not a {fmt} file")
+        raise ParseError(
+            path, None, f"no {vtag} or {etag} lines: the file is empty or not a {fmt} file"
+        )
 
     index = {}
     for k, (vid, lineno) in enumerate(zip(v_ids.tolist(), v_lines)):
         if vid in index:
             raise ParseError(
-                path, lineno, f"duplicate vertex id {vid} (first defined on line {v_lines[index[vid]]})"
+                path,
+                lineno,
+                f"duplicate vertex id {vid} (first defined on line {v_lines[index[vid]]})",
             )
         index[vid] = k
 
@@ -221,7 +228,9 @@ def _build(path, fmt, ignore_unknown):
             k = unknown[0]
             i, j = e_ids[k].tolist()
             v = i if ids[edges[k, 0]] != i else j
-            raise ParseError(path, e_lines[k], f"edge {i} -> {j} refers to vertex {v}, which has no {vtag} line")
+            raise ParseError(
+                path, e_lines[k], f"edge {i} -> {j} refers to vertex {v}, which has no {vtag} line"
+            )
     for k in np.flatnonzero(edges[:, 0] == edges[:, 1])[:1]:
         raise ParseError(path, e_lines[k], f"edge {e_ids[k, 0]} -> {e_ids[k, 1]} is a self-loop")
 
@@ -298,7 +307,9 @@ def detect_format(path):
                 if tok[0] in tags:
                     return fmt
     raise ParseError(
-        path, None, "no VERTEX_SE2/EDGE_SE2 (g2o) or VERTEX2/EDGE2 (TORO) line: not a pose-graph file"
+        path,
+        None,
+        "no VERTEX_SE2/EDGE_SE2 (g2o) or VERTEX2/EDGE2 (TORO) line: not a pose-graph file",
     )
 
 
@@ -352,9 +363,7 @@ def _write(graph, path, fmt):
     edge_vals = np.column_stack([graph.measurements, upper]).tolist()
     edge_ids = ids[graph.edges].tolist()
     lines = [f"{vtag} {int(r[0])} {repr(r[1])} {repr(r[2])} {repr(r[3])}" for r in vertex_rows]
-    lines += [
-        f"{etag} {i} {j} {v}" for (i, j), v in zip(edge_ids, _fmt_rows(edge_vals))
-    ]
+    lines += [f"{etag} {i} {j} {v}" for (i, j), v in zip(edge_ids, _fmt_rows(edge_vals))]
     with open(path, "w", encoding="utf-8") as f:
         f.write("\n".join(lines))
         f.write("\n")
@@ -386,14 +395,22 @@ def read_poses(path):
             if width is None:
                 width = len(tok)
                 if width not in (3, 4):
-                    raise ParseError(path, lineno, f"expected 'x y theta' or 'id x y theta'; got {len(tok)} columns")
+                    raise ParseError(
+                        path,
+                        lineno,
+                        f"expected 'x y theta' or 'id x y theta'; got {len(tok)} columns",
+                    )
             if len(tok) != width:
-                raise ParseError(path, lineno, f"expected {width} columns like the first line; got {len(tok)}")
+                raise ParseError(
+                    path, lineno, f"expected {width} columns like the first line; got {len(tok)}"
+                )
             if width == 4:
                 ids.append(_int(tok[0], path, lineno, "id"))
             else:
                 ids.append(len(rows))
-            rows.append([_float(t, path, lineno, w) for t, w in zip(tok[width - 3:], _VERTEX_FIELDS)])
+            rows.append(
+                [_float(t, path, lineno, w) for t, w in zip(tok[width - 3 :], _VERTEX_FIELDS)]
+            )
     if not rows:
         raise ParseError(path, None, "no poses in the file")
     ids = np.array(ids, dtype=np.int64)
@@ -409,4 +426,6 @@ def write_poses(path, poses, ids=None):
     ids = np.arange(len(poses)) if ids is None else np.asarray(ids, dtype=np.int64)
     rows = poses.tolist()
     with open(path, "w", encoding="utf-8") as f:
-        f.writelines(f"{int(i)} {repr(r[0])} {repr(r[1])} {repr(r[2])}\n" for i, r in zip(ids, rows))
+        f.writelines(
+            f"{int(i)} {repr(r[0])} {repr(r[1])} {repr(r[2])}\n" for i, r in zip(ids, rows)
+        )

@@ -23,8 +23,9 @@ def _segments(poses, edges):
     return np.stack([poses[edges[:, 0], :2], poses[edges[:, 1], :2]], axis=1)
 
 
-def plot_graph(graph, poses=None, ax=None, *, odometry_kw=None, loop_kw=None, vertices=False,
-               title=None):
+def plot_graph(
+    graph, poses=None, ax=None, *, odometry_kw=None, loop_kw=None, vertices=False, title=None
+):
     """Draw a pose graph: odometric edges solid, loop closures dotted (as in Carlone et al. Fig. 1).
 
     Parameters
@@ -52,7 +53,10 @@ def plot_graph(graph, poses=None, ax=None, *, odometry_kw=None, loop_kw=None, ve
     style.update(odometry_kw or {})
     ax.add_collection(LineCollection(_segments(poses, graph.edges[odo]), **style))
     style = {
-        "colors": "tab:red", "linewidths": 0.6, "linestyles": ":", "alpha": 0.8,
+        "colors": "tab:red",
+        "linewidths": 0.6,
+        "linestyles": ":",
+        "alpha": 0.8,
         "label": f"loop closures ({int((~odo).sum())})",
     }
     style.update(loop_kw or {})
@@ -125,8 +129,17 @@ def plot_poses(poses, ax=None, *, length=None, labels=None, color="k", **kw):
     if length is None:
         extent = np.ptp(p[:, :2], axis=0).max() if len(p) > 1 else 1.0
         length = max(0.1 * extent, 0.2)
-    ax.quiver(p[:, 0], p[:, 1], length * np.cos(p[:, 2]), length * np.sin(p[:, 2]),
-              angles="xy", scale_units="xy", scale=1, color=color, **kw)
+    ax.quiver(
+        p[:, 0],
+        p[:, 1],
+        length * np.cos(p[:, 2]),
+        length * np.sin(p[:, 2]),
+        angles="xy",
+        scale_units="xy",
+        scale=1,
+        color=color,
+        **kw,
+    )
     ax.plot(p[:, 0], p[:, 1], "o", color=color, markersize=3)
     for text, q in zip(labels or [], p):
         ax.annotate(text, (q[0], q[1]), textcoords="offset points", xytext=(5, -12))

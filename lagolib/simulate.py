@@ -45,8 +45,17 @@ class Simulation:
     truth: np.ndarray
 
 
-def measure(truth, edges, *, rng=0, sigma_xy=0.05, sigma_theta=0.01, noise="fixed", floor=0.1,
-            noiseless=False):
+def measure(
+    truth,
+    edges,
+    *,
+    rng=0,
+    sigma_xy=0.05,
+    sigma_theta=0.01,
+    noise="fixed",
+    floor=0.1,
+    noiseless=False,
+):
     """Measure ``edges`` between ``truth`` poses with Gaussian noise; returns a :class:`Simulation`.
 
     Parameters
@@ -83,7 +92,9 @@ def measure(truth, edges, *, rng=0, sigma_xy=0.05, sigma_theta=0.01, noise="fixe
     else:
         raise ValueError(f"noise must be 'fixed' or 'proportional'; got {noise!r}")
     if np.any(sxy <= 0) or np.any(sth <= 0):
-        raise ValueError("sigma_xy and sigma_theta must be positive (use noiseless=True for exact data)")
+        raise ValueError(
+            "sigma_xy and sigma_theta must be positive (use noiseless=True for exact data)"
+        )
     sigma = np.column_stack([sxy, sxy, sth])
     eps = rng.standard_normal((m, 3)) * sigma
     if not noiseless:
@@ -106,8 +117,9 @@ def _drive(controls, start=(0.0, 0.0, 0.0)):
     return np.array(poses)
 
 
-def loop_world(*, laps=4, poses_per_lap=40, shape="square", step=1.0, closure_probability=1.0,
-               rng=0, **noise):
+def loop_world(
+    *, laps=4, poses_per_lap=40, shape="square", step=1.0, closure_probability=1.0, rng=0, **noise
+):
     """A robot driving the same closed loop several times.
 
     Pose ``k`` (``k >= poses_per_lap``) sees the place of pose ``k - poses_per_lap`` again; each
@@ -139,7 +151,9 @@ def loop_world(*, laps=4, poses_per_lap=40, shape="square", step=1.0, closure_pr
     n = laps * poses_per_lap
     if shape == "square":
         if poses_per_lap % 4:
-            raise ValueError(f"a square loop needs poses_per_lap divisible by 4; got {poses_per_lap}")
+            raise ValueError(
+                f"a square loop needs poses_per_lap divisible by 4; got {poses_per_lap}"
+            )
         side = poses_per_lap // 4
         turn = np.where((np.arange(n - 1) + 1) % side == 0, np.pi / 2, 0.0)
     elif shape == "circle":
@@ -155,8 +169,18 @@ def loop_world(*, laps=4, poses_per_lap=40, shape="square", step=1.0, closure_pr
     return measure(truth, np.vstack([odo, loops]), rng=rng, **noise)
 
 
-def manhattan_world(*, n_poses=200, extent=6, step=1.0, turn_probability=0.3, closure_radius=0.5,
-                    closure_probability=0.5, min_separation=10, rng=0, **noise):
+def manhattan_world(
+    *,
+    n_poses=200,
+    extent=6,
+    step=1.0,
+    turn_probability=0.3,
+    closure_radius=0.5,
+    closure_probability=0.5,
+    min_separation=10,
+    rng=0,
+    **noise,
+):
     """A random walk on a square lattice with loop closures at revisited places (after Olson's M3500).
 
     At every pose the robot moves ``step`` forward and then keeps its heading or turns by

@@ -16,7 +16,9 @@ def test_make_data_reproduces_the_shipped_files(tmp_path):
     assert len(written) == 6
     for p in written:
         shipped = DATA / p.name
-        assert shipped.read_bytes() == p.read_bytes(), f"{shipped} differs from what make_data.py writes"
+        assert shipped.read_bytes() == p.read_bytes(), (
+            f"{shipped} differs from what make_data.py writes"
+        )
     documented = (DATA / "README.md").read_text()
     for p in written:
         assert p.name in documented

@@ -32,7 +32,9 @@ def test_registry_entries_are_complete():
 def test_mirror_without_the_file_is_an_error_not_a_skip(tmp_path, monkeypatch):
     monkeypatch.setenv("LAGOLIB_DATA", str(tmp_path))
     assert not datasets.available("intel")
-    with pytest.raises(DatasetError, match=r"LAGOLIB_DATA=.* has no file carlone-nano-pgo/input_INTEL_g2o.g2o"):
+    with pytest.raises(
+        DatasetError, match=r"LAGOLIB_DATA=.* has no file carlone-nano-pgo/input_INTEL_g2o.g2o"
+    ):
         datasets.path("intel")
 
 
@@ -42,7 +44,9 @@ def test_corrupt_mirror_file_fails_its_checksum(tmp_path, monkeypatch):
     target.parent.mkdir(parents=True)
     shutil.copy(datasets.data_dir() / "grid100.g2o", target)
     assert datasets.available("ring")
-    with pytest.raises(DatasetError, match=r"SHA-256 .* does not match the registry's .* for dataset 'ring'"):
+    with pytest.raises(
+        DatasetError, match=r"SHA-256 .* does not match the registry's .* for dataset 'ring'"
+    ):
         datasets.load("ring")
 
 

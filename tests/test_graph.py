@@ -33,17 +33,29 @@ def test_construction_and_immutability():
     "override, message",
     [
         (dict(poses=np.zeros((4, 2))), r"poses must have shape \(n, 3\)"),
-        (dict(poses=np.array([[0, 0, 0], [np.nan, 0, 0], [0, 0, 0], [0, 0, 0]])),
-         r"pose of vertex id 1 \(index 1\) is not finite"),
-        (dict(edges=[[0, 1], [1, 2], [2, 3], [3, 4]]),
-         r"edge 3 refers to vertex index \[3, 4\] but the graph has 4 vertices"),
-        (dict(edges=[[0, 1], [1, 2], [2, 2], [3, 0]]), r"edge 2 \(vertex ids 2 -> 2\) is a self-loop"),
+        (
+            dict(poses=np.array([[0, 0, 0], [np.nan, 0, 0], [0, 0, 0], [0, 0, 0]])),
+            r"pose of vertex id 1 \(index 1\) is not finite",
+        ),
+        (
+            dict(edges=[[0, 1], [1, 2], [2, 3], [3, 4]]),
+            r"edge 3 refers to vertex index \[3, 4\] but the graph has 4 vertices",
+        ),
+        (
+            dict(edges=[[0, 1], [1, 2], [2, 2], [3, 0]]),
+            r"edge 2 \(vertex ids 2 -> 2\) is a self-loop",
+        ),
         (dict(edges=[[0, 1.5], [1, 2], [2, 3], [3, 0]]), r"integer vertex indices"),
         (dict(measurements=[[1, 0, 0]] * 3), r"measurements must have shape \(4, 3\)"),
-        (dict(measurements=[[1, 0, 0], [1, 0, 0], [np.inf, 0, 0], [1, 0, 0]]),
-         r"edge 2 \(vertex ids 2 -> 3\) has a non-finite measurement"),
+        (
+            dict(measurements=[[1, 0, 0], [1, 0, 0], [np.inf, 0, 0], [1, 0, 0]]),
+            r"edge 2 \(vertex ids 2 -> 3\) has a non-finite measurement",
+        ),
         (dict(ids=[0, 1, 1, 3]), r"vertex id 1 appears more than once"),
-        (dict(information=np.tile(np.eye(3), (3, 1, 1))), r"information must have shape \(4, 3, 3\)"),
+        (
+            dict(information=np.tile(np.eye(3), (3, 1, 1))),
+            r"information must have shape \(4, 3, 3\)",
+        ),
     ],
 )
 def test_invalid_graphs_name_the_problem(override, message):
@@ -54,7 +66,9 @@ def test_invalid_graphs_name_the_problem(override, message):
 def test_non_positive_definite_information_names_the_edge():
     info = np.tile(np.eye(3), (4, 1, 1))
     info[2] = np.diag([1.0, -1.0, 1.0])
-    with pytest.raises(GraphError, match=r"edge 2 \(vertex ids 2 -> 3\).*not positive definite") as exc:
+    with pytest.raises(
+        GraphError, match=r"edge 2 \(vertex ids 2 -> 3\).*not positive definite"
+    ) as exc:
         small(information=info)
     assert exc.value.edge == 2
     info[2] = [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]]
@@ -72,8 +86,13 @@ def test_lagolib_errors_are_catchable_as_one_class():
 
 def test_odometric_mask_follows_id_order_not_index_order():
     # rows stored out of id order: ids 30, 10, 20 -> id order is rows 1, 2, 0
-    g = PoseGraph(np.zeros((3, 3)), [[1, 2], [2, 0], [0, 1], [1, 0]], np.zeros((4, 3)),
-                  np.tile(np.eye(3), (4, 1, 1)), ids=[30, 10, 20])
+    g = PoseGraph(
+        np.zeros((3, 3)),
+        [[1, 2], [2, 0], [0, 1], [1, 0]],
+        np.zeros((4, 3)),
+        np.tile(np.eye(3), (4, 1, 1)),
+        ids=[30, 10, 20],
+    )
     assert g.odometric.tolist() == [True, True, False, False]
     assert g.loop_closure.tolist() == [False, False, True, True]
     assert g.order.tolist() == [2, 0, 1]
@@ -93,7 +112,9 @@ def test_components_match_networkx():
         m = int(rng.integers(1, 40))
         e = rng.integers(0, n, size=(m, 2))
         e = e[e[:, 0] != e[:, 1]]
-        g = PoseGraph(np.zeros((n, 3)), e, np.zeros((len(e), 3)), np.tile(np.eye(3), (len(e), 1, 1)))
+        g = PoseGraph(
+            np.zeros((n, 3)), e, np.zeros((len(e), 3)), np.tile(np.eye(3), (len(e), 1, 1))
+        )
         G = nx.Graph()
         G.add_nodes_from(range(n))
         G.add_edges_from(e.tolist())
@@ -122,8 +143,9 @@ def test_odometry_guess_uses_backward_edges_and_reports_gaps():
     z = se2.between(truth[edges[:, 0]], truth[edges[:, 1]])
     g = PoseGraph(np.zeros((4, 3)), edges, z, np.tile(np.eye(3), (3, 1, 1)))
     np.testing.assert_allclose(g.odometry_guess(), truth, atol=1e-12)
-    gap = PoseGraph(np.zeros((4, 3)), edges[[0, 2]], z[[0, 2]], np.tile(np.eye(3), (2, 1, 1)),
-                    ids=[5, 6, 7, 8])
+    gap = PoseGraph(
+        np.zeros((4, 3)), edges[[0, 2]], z[[0, 2]], np.tile(np.eye(3), (2, 1, 1)), ids=[5, 6, 7, 8]
+    )
     with pytest.raises(GraphError, match=r"no edge between vertex ids 6 and 7 \(1 gap"):
         gap.odometry_guess()
 
@@ -157,8 +179,9 @@ def test_residuals_equal_the_matrix_definition():
     x = sim.graph.poses + rng.normal(scale=0.3, size=(sim.graph.n, 3))
     e = lagolib.residuals(sim.graph, x)
     for k, (i, j) in enumerate(sim.graph.edges):
-        np.testing.assert_allclose(e[k], residual_by_definition(sim.graph.measurements[k], x[i], x[j]),
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            e[k], residual_by_definition(sim.graph.measurements[k], x[i], x[j]), atol=1e-12
+        )
 
 
 def test_chi2_is_the_weighted_sum():
@@ -177,8 +200,12 @@ def test_chi2_at_truth_is_zero_for_noiseless_measurements():
 
 
 def test_residual_angle_is_wrapped():
-    g = PoseGraph(np.array([[0, 0, 3.0], [0, 0, -3.0]]), [[0, 1]], [[0, 0, 0.28318530717958623]],
-                  np.eye(3)[None])
+    g = PoseGraph(
+        np.array([[0, 0, 3.0], [0, 0, -3.0]]),
+        [[0, 1]],
+        [[0, 0, 0.28318530717958623]],
+        np.eye(3)[None],
+    )
     # theta_j - theta_i - theta_z = -6.283...  which wraps to ~0
     assert abs(lagolib.residuals(g)[0, 2]) < 1e-15
 

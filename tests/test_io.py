@@ -25,13 +25,21 @@ GOOD = V.format(0) + V.format(1) + E.format(0, 1)
     [
         (GOOD + "EQUIV 0 1\n", 4, r"unknown tag 'EQUIV' in a g2o file.*ignore_unknown=True"),
         (GOOD + "VERTEX2 7 0 0 0\n", 4, r"unknown tag 'VERTEX2'.*looks like a toro file"),
-        (V.format(0) + "VERTEX_SE2 1 0 0\n", 2, r"VERTEX_SE2 needs 4 numbers \(id x y theta\); got 3"),
+        (
+            V.format(0) + "VERTEX_SE2 1 0 0\n",
+            2,
+            r"VERTEX_SE2 needs 4 numbers \(id x y theta\); got 3",
+        ),
         (GOOD + "EDGE_SE2 0 1 1 0 0 1 0 0 1 0\n", 4, r"EDGE_SE2 needs 11 numbers.*got 10"),
         (GOOD + "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1 5\n", 4, r"EDGE_SE2 needs 11 numbers.*got 12"),
         (V.format(0) + "VERTEX_SE2 1 0 zero 0\n", 2, r"y is not a number: 'zero'"),
         (V.format(0) + "VERTEX_SE2 1.5 0 0 0\n", 2, r"id is not an integer vertex id: '1.5'"),
         (GOOD + "EDGE_SE2 0 1 nan 0 0 1 0 0 1 0 1\n", 4, r"dx is not finite: 'nan'"),
-        (GOOD + "EDGE_SE2 0 1 1 0 0 1 0 0 inf 0 1\n", 4, r"information entry 4 is not finite: 'inf'"),
+        (
+            GOOD + "EDGE_SE2 0 1 1 0 0 1 0 0 inf 0 1\n",
+            4,
+            r"information entry 4 is not finite: 'inf'",
+        ),
         (GOOD + "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1e999\n", 4, r"information entry 6 is not finite"),
         (GOOD + V.format(1), 4, r"duplicate vertex id 1 \(first defined on line 2\)"),
         (GOOD + E.format(1, 9), 4, r"edge 1 -> 9 refers to vertex 9, which has no VERTEX_SE2 line"),
@@ -81,7 +89,9 @@ def test_toro_field_order_is_not_g2o_order(tmp):
 
 def test_unknown_tags_skipped_on_request_and_counted(tmp):
     p = tmp("x.g2o", GOOD + "EQUIV 0 1\nFIX 0\nFIX 1\n# comment\n\nVERTEX_XY 5 1 2\n")
-    with pytest.warns(SkippedLinesWarning, match=r"skipped 4 line\(s\).*1 EQUIV, 2 FIX, 1 VERTEX_XY"):
+    with pytest.warns(
+        SkippedLinesWarning, match=r"skipped 4 line\(s\).*1 EQUIV, 2 FIX, 1 VERTEX_XY"
+    ):
         g = lagolib.read_g2o(p, ignore_unknown=True)
     assert (g.n, g.m) == (2, 1)
 
@@ -95,8 +105,13 @@ def test_comments_and_blank_lines_are_skipped(tmp):
 
 
 def test_vertex_ids_need_not_be_indices(tmp):
-    p = tmp("ids.g2o", "VERTEX_SE2 100 0 0 0\nVERTEX_SE2 7 1 0 0\nVERTEX_SE2 50 2 0 0\n"
-            + E.format(7, 50) + E.format(50, 100) + E.format(100, 7))
+    p = tmp(
+        "ids.g2o",
+        "VERTEX_SE2 100 0 0 0\nVERTEX_SE2 7 1 0 0\nVERTEX_SE2 50 2 0 0\n"
+        + E.format(7, 50)
+        + E.format(50, 100)
+        + E.format(100, 7),
+    )
     g = lagolib.read(p)
     assert g.ids.tolist() == [100, 7, 50]
     assert g.edges.tolist() == [[1, 2], [2, 0], [0, 1]]
@@ -106,13 +121,18 @@ def test_vertex_ids_need_not_be_indices(tmp):
 def test_edge_only_file_gets_vertices_from_the_odometric_chain(tmp):
     truth = np.array([[0, 0, 0], [1, 0, 0.5], [1.5, 1, 1.2]])
     z = se2.between(truth[[0, 1, 0]], truth[[1, 2, 2]])
-    lines = [f"EDGE_SE2 {i} {j} {a!r} {b!r} {c!r} 1 0 0 1 0 1\n"
-             for (i, j), (a, b, c) in zip([(0, 1), (1, 2), (0, 2)], z.tolist())]
+    lines = [
+        f"EDGE_SE2 {i} {j} {a!r} {b!r} {c!r} 1 0 0 1 0 1\n"
+        for (i, j), (a, b, c) in zip([(0, 1), (1, 2), (0, 2)], z.tolist())
+    ]
     g = lagolib.read(tmp("e.g2o", "".join(lines)))
     np.testing.assert_allclose(g.poses, truth, atol=1e-12)
     broken = tmp("b.g2o", lines[0] + "EDGE_SE2 2 3 1 0 0 1 0 0 1 0 1\n")
-    with pytest.raises(ParseError, match=r"b.g2o: file has no VERTEX_SE2 lines and the odometric chain "
-                       r"is broken: no edge between vertex ids 1 and 2"):
+    with pytest.raises(
+        ParseError,
+        match=r"b.g2o: file has no VERTEX_SE2 lines and the odometric chain "
+        r"is broken: no edge between vertex ids 1 and 2",
+    ):
         lagolib.read(broken)
 
 
@@ -129,7 +149,9 @@ def test_read_poses_forms_and_errors(tmp):
     assert ids.tolist() == [0, 1] and p.shape == (2, 3)
     ids, p = lagolib.read_poses(tmp("b.txt", "4 0 0 0\n9 1 2 0.5\n"))
     assert ids.tolist() == [4, 9] and p[1].tolist() == [1, 2, 0.5]
-    with pytest.raises(ParseError, match=r"b2.txt:2: expected 4 columns like the first line; got 3"):
+    with pytest.raises(
+        ParseError, match=r"b2.txt:2: expected 4 columns like the first line; got 3"
+    ):
         lagolib.read_poses(tmp("b2.txt", "4 0 0 0\n1 2 0.5\n"))
     with pytest.raises(ParseError, match=r"c.txt:1: expected 'x y theta' or 'id x y theta'"):
         lagolib.read_poses(tmp("c.txt", "1 2\n"))
@@ -159,7 +181,9 @@ def test_shipped_examples_round_trip_bit_for_bit(tmp_path, name):
     g = datasets.example(name).graph
     lagolib.write_g2o(g, tmp_path / "a.g2o")
     assert_same_graph(g, lagolib.read(tmp_path / "a.g2o"))
-    lagolib.write_toro(g, tmp_path / "a.graph")  # isotropic: the frame rotation is exact up to 1 ulp
+    lagolib.write_toro(
+        g, tmp_path / "a.graph"
+    )  # isotropic: the frame rotation is exact up to 1 ulp
     assert_same_graph(g, lagolib.read(tmp_path / "a.graph"), info_rtol=1e-15)
 
 
@@ -181,8 +205,12 @@ def test_toro_information_makes_frame_i_error_equal_g2o_error():
     om_toro = L @ np.swapaxes(L, 1, 2) + 0.1 * np.eye(3)
     rel = se2.between(xi, xj)
     e_i = np.column_stack([rel[:, :2] - z[:, :2], se2.wrap_angle(rel[:, 2] - z[:, 2])])
-    g = lagolib.PoseGraph(np.vstack([xi, xj]), np.column_stack([np.arange(30), np.arange(30, 60)]), z,
-                          toro_to_g2o_information(om_toro, z[:, 2]))
+    g = lagolib.PoseGraph(
+        np.vstack([xi, xj]),
+        np.column_stack([np.arange(30), np.arange(30, 60)]),
+        z,
+        toro_to_g2o_information(om_toro, z[:, 2]),
+    )
     expected = np.einsum("ka,kab,kb->k", e_i, om_toro, e_i)
     np.testing.assert_allclose(lagolib.chi2(g, per_edge=True), expected, rtol=1e-11)
 
@@ -194,10 +222,22 @@ def _sources_table(mirror):
     for line in (mirror / "SOURCES.md").read_text().splitlines():
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
         if len(cells) == 16 and cells[0].startswith("`posegraphs/"):
-            rel = cells[0].strip("`")[len("posegraphs/"):]
+            rel = cells[0].strip("`")[len("posegraphs/") :]
             if cells[7].isdigit():
-                rows[rel] = dict(zip(["vertices", "edges", "odometric", "reverse", "other", "backward",
-                                      "duplicates"], map(int, cells[7:14])))
+                rows[rel] = dict(
+                    zip(
+                        [
+                            "vertices",
+                            "edges",
+                            "odometric",
+                            "reverse",
+                            "other",
+                            "backward",
+                            "duplicates",
+                        ],
+                        map(int, cells[7:14]),
+                    )
+                )
     return rows
 
 
@@ -255,9 +295,15 @@ def test_every_mirror_file_round_trips(mirror, tmp_path):
 
 def test_counts_match_sources_table(mirror):
     table = _sources_table(mirror)
-    for must in ["carlone-nano-pgo/input_INTEL_g2o.g2o", "carlone-nano-pgo/input_M3500_g2o.g2o",
-                 "se-sync/CSAIL.g2o", "carlone-nano-pgo/CSAIL_P_toro.graph",
-                 "carlone-nano-pgo/FR079_P_toro.graph", "se-sync/MIT.g2o", "se-sync/city10000.g2o"]:
+    for must in [
+        "carlone-nano-pgo/input_INTEL_g2o.g2o",
+        "carlone-nano-pgo/input_M3500_g2o.g2o",
+        "se-sync/CSAIL.g2o",
+        "carlone-nano-pgo/CSAIL_P_toro.graph",
+        "carlone-nano-pgo/FR079_P_toro.graph",
+        "se-sync/MIT.g2o",
+        "se-sync/city10000.g2o",
+    ]:
         assert must in table
     checked = 0
     for rel, row in table.items():
@@ -298,16 +344,29 @@ def test_csail_toro_and_g2o_give_the_same_chi2(benchmark):
     assert a == pytest.approx(b, rel=1e-9)
     assert a == pytest.approx(2218642.21, rel=1e-8)  # SOURCES.md, "frame-i error" column
     # read in the g2o convention without the rotation, the cost would be SOURCES.md's 1310652.54
-    unrotated = lagolib.PoseGraph(toro.poses, toro.edges, toro.measurements,
-                                  g2o_to_toro_information(toro.information, toro.measurements[:, 2]))
+    unrotated = lagolib.PoseGraph(
+        toro.poses,
+        toro.edges,
+        toro.measurements,
+        g2o_to_toro_information(toro.information, toro.measurements[:, 2]),
+    )
     assert lagolib.chi2(unrotated) == pytest.approx(1310652.54, rel=1e-8)
 
 
-@pytest.mark.parametrize("name, printed", [
-    ("intel", "5149721.04"), ("m3500", "2566667.66"), ("fr079", "8343.8679"),
-    ("intel_sesync", "551.735731"), ("city10000", "654162688"), ("mit", "4.41418166e9"),
-    ("intel_g2o", "1331.4989"), ("ring", "2041063.93"), ("m3500_olson", "2566434.29"),
-])
+@pytest.mark.parametrize(
+    "name, printed",
+    [
+        ("intel", "5149721.04"),
+        ("m3500", "2566667.66"),
+        ("fr079", "8343.8679"),
+        ("intel_sesync", "551.735731"),
+        ("city10000", "654162688"),
+        ("mit", "4.41418166e9"),
+        ("intel_g2o", "1331.4989"),
+        ("ring", "2041063.93"),
+        ("m3500_olson", "2566434.29"),
+    ],
+)
 def test_chi2_at_the_files_initial_guess(benchmark, name, printed):
     # values computed independently for SOURCES.md (g2o error; TORO files: frame-i error),
     # printed to the digits shown: agree to half a unit in the last one
@@ -342,7 +401,9 @@ def _gtsam_arrays(graph_factors, values, n_vertices):
     return rows, poses
 
 
-@pytest.mark.parametrize("name", ["intel", "m3500", "mit", "city10000", "intel_sesync", "ring", "intel_g2o"])
+@pytest.mark.parametrize(
+    "name", ["intel", "m3500", "mit", "city10000", "intel_sesync", "ring", "intel_g2o"]
+)
 def test_g2o_reader_agrees_with_gtsam(benchmark, name):
     gtsam = pytest.importorskip("gtsam")
     p = benchmark(name)
@@ -354,7 +415,9 @@ def test_g2o_reader_agrees_with_gtsam(benchmark, name):
         assert keys == g.ids[g.edges[k]].tolist()
         np.testing.assert_allclose(g.measurements[k, :2], z[:2], rtol=1e-15, atol=0)
         assert se2.wrap_angle(g.measurements[k, 2] - z[2]) == pytest.approx(0, abs=1e-15)
-        np.testing.assert_allclose(g.information[k], info, rtol=1e-9, atol=1e-9 * np.abs(info).max())
+        np.testing.assert_allclose(
+            g.information[k], info, rtol=1e-9, atol=1e-9 * np.abs(info).max()
+        )
     for row, vid in enumerate(g.ids):
         q = poses[int(vid)]
         np.testing.assert_allclose(g.poses[row, :2], [q.x(), q.y()], rtol=1e-15, atol=0)
@@ -371,6 +434,6 @@ def test_toro_reader_agrees_with_gtsam(benchmark, name):
     rows, _ = _gtsam_arrays(fg, values, g.n)
     assert len(rows) == g.m
     toro_info = g2o_to_toro_information(g.information, g.measurements[:, 2])
-    for k, (keys, z, info) in enumerate(rows):
+    for k, (keys, _, info) in enumerate(rows):
         assert keys == g.ids[g.edges[k]].tolist()
         np.testing.assert_allclose(toro_info[k], info, rtol=1e-9, atol=1e-9 * np.abs(info).max())

@@ -11,8 +11,11 @@ from lagolib import se2
 coord = st.floats(-1e3, 1e3, allow_nan=False)
 angle = st.floats(-20.0, 20.0, allow_nan=False)
 pose = st.tuples(coord, coord, angle).map(np.array)
-poses = arrays(np.float64, st.tuples(st.integers(1, 6), st.just(3)),
-               elements=st.floats(-50, 50, allow_nan=False))
+poses = arrays(
+    np.float64,
+    st.tuples(st.integers(1, 6), st.just(3)),
+    elements=st.floats(-50, 50, allow_nan=False),
+)
 
 
 def close_poses(a, b, atol=1e-9):

@@ -34,7 +34,9 @@ def test_noiseless_worlds_are_consistent(world, kw):
     assert lagolib.chi2(sim.graph, sim.truth) < 1e-18
     # the odometry guess of noiseless odometry is the truth
     np.testing.assert_allclose(sim.graph.poses[:, :2], sim.truth[:, :2], atol=1e-9)
-    np.testing.assert_allclose(se2.wrap_angle(sim.graph.poses[:, 2] - sim.truth[:, 2]), 0, atol=1e-12)
+    np.testing.assert_allclose(
+        se2.wrap_angle(sim.graph.poses[:, 2] - sim.truth[:, 2]), 0, atol=1e-12
+    )
     assert np.all((sim.truth[:, 2] > -np.pi) & (sim.truth[:, 2] <= np.pi))
 
 
@@ -48,12 +50,22 @@ def test_chi2_at_truth_has_the_chi_square_distribution_mean(noise):
 
 
 def test_proportional_noise_scales_with_the_motion():
-    sim = simulate.loop_world(laps=2, poses_per_lap=16, step=2.0, noise="proportional",
-                              sigma_xy=0.1, sigma_theta=0.2, floor=0.1, noiseless=True)
+    sim = simulate.loop_world(
+        laps=2,
+        poses_per_lap=16,
+        step=2.0,
+        noise="proportional",
+        sigma_xy=0.1,
+        sigma_theta=0.2,
+        floor=0.1,
+        noiseless=True,
+    )
     info = sim.graph.information
     dist = np.hypot(*sim.graph.measurements[:, :2].T)
     np.testing.assert_allclose(info[:, 0, 0], 1 / (0.1 * np.maximum(dist, 0.1)) ** 2)
-    np.testing.assert_allclose(info[:, 2, 2], 1 / (0.2 * np.maximum(np.abs(sim.graph.measurements[:, 2]), 0.1)) ** 2)
+    np.testing.assert_allclose(
+        info[:, 2, 2], 1 / (0.2 * np.maximum(np.abs(sim.graph.measurements[:, 2]), 0.1)) ** 2
+    )
     assert np.all(info[:, 0, 0] == info[:, 1, 1])
 
 
@@ -63,7 +75,9 @@ def test_loop_world_geometry():
     assert (g.n, int(g.odometric.sum()), int(g.loop_closure.sum())) == (160, 159, 120)
     loops = g.edges[g.loop_closure]
     assert np.all(loops[:, 1] - loops[:, 0] == 40)
-    np.testing.assert_allclose(g.measurements[g.loop_closure], 0, atol=1e-9)  # same place, same heading
+    np.testing.assert_allclose(
+        g.measurements[g.loop_closure], 0, atol=1e-9
+    )  # same place, same heading
     # the heading accumulated along the odometry grows by 2 pi per lap (the wraparound)
     assert np.sum(g.measurements[g.odometric, 2]) == pytest.approx(2 * np.pi * 4 - np.pi / 2)
     with pytest.raises(ValueError, match="divisible by 4"):
@@ -73,7 +87,9 @@ def test_loop_world_geometry():
 
 
 def test_manhattan_world_geometry():
-    sim = simulate.manhattan_world(n_poses=300, extent=5, closure_radius=0.5, min_separation=10, rng=9)
+    sim = simulate.manhattan_world(
+        n_poses=300, extent=5, closure_radius=0.5, min_separation=10, rng=9
+    )
     t = sim.truth
     np.testing.assert_array_equal(t[:, :2], np.round(t[:, :2]))  # on the lattice
     assert t[:, :2].min() >= 0 and t[:, :2].max() <= 4
@@ -88,9 +104,13 @@ def test_grid_world_geometry():
     sim = simulate.grid_world(rows=10, cols=10, closure_probability=1.0, rng=0)
     g, t = sim.graph, sim.truth
     assert g.n == 100
-    assert sorted(map(tuple, t[:, :2].tolist())) == [(float(x), float(y)) for x in range(10) for y in range(10)]
+    assert sorted(map(tuple, t[:, :2].tolist())) == [
+        (float(x), float(y)) for x in range(10) for y in range(10)
+    ]
     loops = g.edges[g.loop_closure]
-    assert len(loops) == 9 * 10 - 9  # vertical neighbours, less the 9 row-end steps that are odometry
+    assert (
+        len(loops) == 9 * 10 - 9
+    )  # vertical neighbours, less the 9 row-end steps that are odometry
     np.testing.assert_allclose(np.hypot(*(t[loops[:, 0], :2] - t[loops[:, 1], :2]).T), 1.0)
 
 
