@@ -30,6 +30,17 @@ from .errors import GraphError
 __all__ = ["PoseGraph", "residuals", "chi2"]
 
 
+def _numeric(value, name, dtype):
+    """``np.asarray`` that reports non-numeric or ragged input as a GraphError naming ``name``."""
+    try:
+        a = np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError) as exc:
+        raise GraphError(f"{name} must be a numeric array: {exc}") from None
+    if a.dtype.kind not in "biuf":
+        raise GraphError(f"{name} must be a numeric array; got dtype {a.dtype}")
+    return a
+
+
 def _frozen(a, dtype):
     a = np.array(a, dtype=dtype, copy=True)
     a.setflags(write=False)
@@ -83,36 +94,30 @@ class PoseGraph:
     __slots__ = ("_poses", "_ids", "_edges", "_measurements", "_information", "_cache")
 
     def __init__(self, poses, edges, measurements, information, ids=None):
-        poses = np.asarray(poses, dtype=float)
+        poses = _numeric(poses, "poses", float)
         if poses.ndim != 2 or poses.shape[1] != 3:
             raise GraphError(f"poses must have shape (n, 3); got {poses.shape}")
         n = poses.shape[0]
-        edges = np.asarray(edges)
+        edges = _numeric(edges, "edges", None)
         if edges.size == 0:
             edges = edges.reshape(0, 2)
         if edges.ndim != 2 or edges.shape[1] != 2:
             raise GraphError(f"edges must have shape (m, 2); got {edges.shape}")
         if edges.dtype.kind not in "iu":
-            if (
-                edges.dtype.kind == "f"
-                and np.all(np.isfinite(edges))
-                and np.all(edges == np.round(edges))
-            ):
-                edges = edges.astype(np.int64)
-            else:
+            integral = edges.dtype.kind == "f" and np.all(edges == np.round(edges))
+            if not integral:
                 raise GraphError(f"edges must hold integer vertex indices; got dtype {edges.dtype}")
+            edges = edges.astype(np.int64)
         m = edges.shape[0]
-        measurements = (
-            np.asarray(measurements, dtype=float).reshape(-1, 3) if m else np.zeros((0, 3))
-        )
-        information = np.asarray(information, dtype=float)
+        measurements = _numeric(measurements, "measurements", float)
+        information = _numeric(information, "information", float)
+        if m == 0 and measurements.size == 0 and information.size == 0:
+            measurements, information = np.zeros((0, 3)), np.zeros((0, 3, 3))
         if measurements.shape != (m, 3):
             raise GraphError(f"measurements must have shape ({m}, 3); got {measurements.shape}")
-        if m == 0:
-            information = information.reshape(0, 3, 3)
         if information.shape != (m, 3, 3):
             raise GraphError(f"information must have shape ({m}, 3, 3); got {information.shape}")
-        ids = np.arange(n) if ids is None else np.asarray(ids)
+        ids = np.arange(n) if ids is None else _numeric(ids, "ids", None)
         if ids.shape != (n,) or ids.dtype.kind not in "iu":
             raise GraphError(f"ids must be {n} integers; got shape {ids.shape}, dtype {ids.dtype}")
 
@@ -277,7 +282,7 @@ class PoseGraph:
     # ------------------------------------------------------------------ poses
     def with_poses(self, poses):
         """A new graph with the same edges and other poses (shape (n, 3))."""
-        poses = np.asarray(poses, dtype=float)
+        poses = _numeric(poses, "poses", float)
         if poses.shape != (self.n, 3):
             raise GraphError(f"poses must have shape ({self.n}, 3); got {poses.shape}")
         new = object.__new__(PoseGraph)
@@ -408,7 +413,7 @@ def _edge_arrays(graph, poses):
     if poses is None:
         poses = graph.poses
     else:
-        poses = np.asarray(poses, dtype=float)
+        poses = _numeric(poses, "poses", float)
         if poses.shape != (graph.n, 3):
             raise GraphError(f"poses must have shape ({graph.n}, 3); got {poses.shape}")
     return poses[graph.edges[:, 0]], poses[graph.edges[:, 1]]

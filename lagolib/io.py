@@ -84,51 +84,60 @@ _VERTEX_FIELDS = ("x", "y", "theta")
 _EDGE_FIELDS = ("dx", "dy", "dtheta") + tuple(f"information entry {k}" for k in range(1, 7))
 
 
+def _data_lines(path):
+    """Yield ``(line number, tokens)`` of every line that is not blank or a ``#`` comment."""
+    lineno = 0
+    try:
+        with open(path, encoding="utf-8") as f:
+            for lineno, raw in enumerate(f, 1):  # noqa: B007 (read in the except clause)
+                tok = raw.split()
+                if tok and not tok[0].startswith("#"):
+                    yield lineno, tok
+    except UnicodeDecodeError:
+        raise ParseError(path, lineno + 1, "not UTF-8 text: is this a pose-graph file?") from None
+
+
 def _parse_lines(path, fmt, ignore_unknown):
     """Split a g2o/TORO file into vertex and edge records, keeping line numbers."""
     vtag, etag = _TAGS[fmt]
     v_ids, v_vals, v_lines = [], [], []
     e_ids, e_vals, e_lines = [], [], []
     skipped = Counter()
-    with open(path, encoding="utf-8") as f:
-        for lineno, raw in enumerate(f, 1):
-            tok = raw.split()
-            if not tok or tok[0].startswith("#"):
-                continue
-            tag = tok[0]
-            if tag == etag:
-                if len(tok) != 12:
-                    raise ParseError(
-                        path,
-                        lineno,
-                        f"{etag} needs 11 numbers (i j dx dy dtheta and 6 information entries); "
-                        f"got {len(tok) - 1}",
-                    )
-                e_ids.append(tok[1:3])
-                e_vals.append(tok[3:])
-                e_lines.append(lineno)
-            elif tag == vtag:
-                if len(tok) != 5:
-                    raise ParseError(
-                        path, lineno, f"{vtag} needs 4 numbers (id x y theta); got {len(tok) - 1}"
-                    )
-                v_ids.append(tok[1:2])
-                v_vals.append(tok[2:])
-                v_lines.append(lineno)
-            elif ignore_unknown:
-                skipped[tag] += 1
-            else:
-                other = "toro" if fmt == "g2o" else "g2o"
-                hint = (
-                    f"this looks like a {other} file: use read_{other} or read"
-                    if tag in _TAGS[other]
-                    else "pass ignore_unknown=True to skip such lines"
-                )
+    for lineno, tok in _data_lines(path):
+        tag = tok[0]
+        if tag == etag:
+            if len(tok) != 12:
                 raise ParseError(
                     path,
                     lineno,
-                    f"unknown tag {tag!r} in a {fmt} file (expected {vtag} or {etag}); {hint}",
+                    f"{etag} needs 11 numbers (i j dx dy dtheta and 6 information entries); "
+                    f"got {len(tok) - 1}",
                 )
+            e_ids.append(tok[1:3])
+            e_vals.append(tok[3:])
+            e_lines.append(lineno)
+        elif tag == vtag:
+            if len(tok) != 5:
+                raise ParseError(
+                    path, lineno, f"{vtag} needs 4 numbers (id x y theta); got {len(tok) - 1}"
+                )
+            v_ids.append(tok[1:2])
+            v_vals.append(tok[2:])
+            v_lines.append(lineno)
+        elif ignore_unknown:
+            skipped[tag] += 1
+        else:
+            other = "toro" if fmt == "g2o" else "g2o"
+            hint = (
+                f"this looks like a {other} file: use read_{other} or read"
+                if tag in _TAGS[other]
+                else "pass ignore_unknown=True to skip such lines"
+            )
+            raise ParseError(
+                path,
+                lineno,
+                f"unknown tag {tag!r} in a {fmt} file (expected {vtag} or {etag}); {hint}",
+            )
     if skipped:
         what = ", ".join(f"{count} {tag}" for tag, count in sorted(skipped.items()))
         warnings.warn(
@@ -298,14 +307,10 @@ def detect_format(path):
     ParseError
         If no line starts with ``VERTEX_SE2``, ``EDGE_SE2``, ``VERTEX2`` or ``EDGE2``.
     """
-    with open(path, encoding="utf-8") as f:
-        for raw in f:
-            tok = raw.split(maxsplit=1)
-            if not tok:
-                continue
-            for fmt, tags in _TAGS.items():
-                if tok[0] in tags:
-                    return fmt
+    for _, tok in _data_lines(path):
+        for fmt, tags in _TAGS.items():
+            if tok[0] in tags:
+                return fmt
     raise ParseError(
         path,
         None,
@@ -387,30 +392,24 @@ def read_poses(path):
         For a line with another number of columns than the first, a non-number, or a duplicate id.
     """
     ids, rows, width = [], [], None
-    with open(path, encoding="utf-8") as f:
-        for lineno, raw in enumerate(f, 1):
-            tok = raw.split()
-            if not tok or tok[0].startswith("#"):
-                continue
-            if width is None:
-                width = len(tok)
-                if width not in (3, 4):
-                    raise ParseError(
-                        path,
-                        lineno,
-                        f"expected 'x y theta' or 'id x y theta'; got {len(tok)} columns",
-                    )
-            if len(tok) != width:
+    for lineno, tok in _data_lines(path):
+        if width is None:
+            width = len(tok)
+            if width not in (3, 4):
                 raise ParseError(
-                    path, lineno, f"expected {width} columns like the first line; got {len(tok)}"
+                    path,
+                    lineno,
+                    f"expected 'x y theta' or 'id x y theta'; got {len(tok)} columns",
                 )
-            if width == 4:
-                ids.append(_int(tok[0], path, lineno, "id"))
-            else:
-                ids.append(len(rows))
-            rows.append(
-                [_float(t, path, lineno, w) for t, w in zip(tok[width - 3 :], _VERTEX_FIELDS)]
+        if len(tok) != width:
+            raise ParseError(
+                path, lineno, f"expected {width} columns like the first line; got {len(tok)}"
             )
+        if width == 4:
+            ids.append(_int(tok[0], path, lineno, "id"))
+        else:
+            ids.append(len(rows))
+        rows.append([_float(t, path, lineno, w) for t, w in zip(tok[width - 3 :], _VERTEX_FIELDS)])
     if not rows:
         raise ParseError(path, None, "no poses in the file")
     ids = np.array(ids, dtype=np.int64)

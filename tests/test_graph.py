@@ -52,6 +52,15 @@ def test_construction_and_immutability():
             r"edge 2 \(vertex ids 2 -> 3\) has a non-finite measurement",
         ),
         (dict(ids=[0, 1, 1, 3]), r"vertex id 1 appears more than once"),
+        (dict(ids=[0.0, 1.0, 2.0, 3.0]), r"ids must be 4 integers"),
+        (dict(poses=[["a", 0, 0]] * 4), r"poses must be a numeric array"),
+        (
+            dict(measurements=[[1, 0], [1, 0], [1, 0, 0], [1, 0, 0]]),
+            r"measurements must be a numeric",
+        ),
+        (dict(measurements=[[1, 0]] * 3), r"measurements must have shape \(4, 3\); got \(3, 2\)"),
+        (dict(edges=[[0, np.nan], [1, 2], [2, 3], [3, 0]]), r"integer vertex indices"),
+        (dict(edges=[["0", "1"]] * 4), r"edges must be a numeric array"),
         (
             dict(information=np.tile(np.eye(3), (3, 1, 1))),
             r"information must have shape \(4, 3, 3\)",
@@ -77,6 +86,12 @@ def test_non_positive_definite_information_names_the_edge():
     info[2] = np.zeros((3, 3))
     with pytest.raises(GraphError, match=r"edge 2 .*not positive definite"):
         small(information=info)
+
+
+def test_empty_graph_is_allowed():
+    g = PoseGraph(np.zeros((1, 3)), [], [], [])
+    assert (g.n, g.m, g.is_connected) == (1, 0, True)
+    assert lagolib.chi2(g) == 0.0
 
 
 def test_lagolib_errors_are_catchable_as_one_class():

@@ -66,6 +66,15 @@ def test_empty_files_are_rejected(tmp, text):
         lagolib.read(p)
 
 
+def test_binary_files_are_rejected_as_not_text(tmp_path):
+    p = tmp_path / "image.g2o"
+    p.write_bytes(b"VERTEX_SE2 0 0 0 0\n\xff\xfe\x00garbage\n")
+    with pytest.raises(ParseError, match=r"image.g2o:\d+: not UTF-8 text"):
+        lagolib.read(p)
+    with pytest.raises(ParseError, match=r"not UTF-8 text"):
+        lagolib.read_poses(p)
+
+
 def test_bad_toro_lines(tmp):
     p = tmp("bad.graph", "VERTEX2 0 0 0 0\nVERTEX2 1 0 0 0\nEDGE2 0 1 1 0 0 1 0 1 1 0\n")
     with pytest.raises(ParseError, match=rf"^{re.escape(str(p))}:3: EDGE2 needs 11 numbers"):
