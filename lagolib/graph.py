@@ -138,14 +138,17 @@ class PoseGraph:
             return f"edge {k} (vertex ids {self._ids[i]} -> {self._ids[j]})"
         return f"edge {k} (indices {i} -> {j})"
 
-    def _validate(self, information):
-        n, m = self.n, self.m
+    def _check_poses_finite(self):
         bad = np.flatnonzero(~np.all(np.isfinite(self._poses), axis=1))
         if bad.size:
             raise GraphError(
                 f"pose of vertex id {self._ids[bad[0]]} (index {bad[0]}) is not finite: "
                 f"{self._poses[bad[0]].tolist()}; give every vertex finite (x, y, theta)"
             )
+
+    def _validate(self, information):
+        n, m = self.n, self.m
+        self._check_poses_finite()
         uniq, counts = np.unique(self._ids, return_counts=True)
         if np.any(counts > 1):
             raise GraphError(
@@ -290,12 +293,7 @@ class PoseGraph:
         new._ids, new._edges = self._ids, self._edges
         new._measurements, new._information = self._measurements, self._information
         new._cache = self._cache  # structure only: nothing cached depends on the poses
-        bad = np.flatnonzero(~np.all(np.isfinite(new._poses), axis=1))
-        if bad.size:
-            raise GraphError(
-                f"pose of vertex id {self._ids[bad[0]]} (index {bad[0]}) is not finite: "
-                f"{new._poses[bad[0]].tolist()}"
-            )
+        new._check_poses_finite()
         return new
 
     def odometric_chain(self):
