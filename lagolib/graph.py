@@ -104,7 +104,11 @@ class PoseGraph:
         if edges.ndim != 2 or edges.shape[1] != 2:
             raise GraphError(f"edges must have shape (m, 2); got {edges.shape}")
         if edges.dtype.kind not in "iu":
-            integral = edges.dtype.kind == "f" and np.all(edges == np.round(edges))
+            integral = (
+                edges.dtype.kind == "f"
+                and np.all(np.isfinite(edges))
+                and np.all(edges == np.round(edges))
+            )
             if not integral:
                 raise GraphError(f"edges must hold integer vertex indices; got dtype {edges.dtype}")
             edges = edges.astype(np.int64)

@@ -86,15 +86,25 @@ _EDGE_FIELDS = ("dx", "dy", "dtheta") + tuple(f"information entry {k}" for k in 
 
 def _data_lines(path):
     """Yield ``(line number, tokens)`` of every line that is not blank or a ``#`` comment."""
-    lineno = 0
     try:
         with open(path, encoding="utf-8") as f:
-            for lineno, raw in enumerate(f, 1):  # noqa: B007 (read in the except clause)
+            for lineno, raw in enumerate(f, 1):
                 tok = raw.split()
                 if tok and not tok[0].startswith("#"):
                     yield lineno, tok
     except UnicodeDecodeError:
-        raise ParseError(path, lineno + 1, "not UTF-8 text: is this a pose-graph file?") from None
+        # text files are decoded in chunks, so the line being read is not the culprit's: find it
+        with open(path, "rb") as f:
+            bad = next((k for k, raw in enumerate(f, 1) if not _is_utf8(raw)), None)
+        raise ParseError(path, bad, "not UTF-8 text: is this a pose-graph file?") from None
+
+
+def _is_utf8(raw):
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
 
 
 def _parse_lines(path, fmt, ignore_unknown):
@@ -143,7 +153,7 @@ def _parse_lines(path, fmt, ignore_unknown):
         warnings.warn(
             f"{path}: skipped {sum(skipped.values())} line(s) with tags lagolib does not read: {what}",
             SkippedLinesWarning,
-            stacklevel=3,
+            stacklevel=4,  # _parse_lines <- _build <- read/read_g2o/read_toro <- the caller
         )
     v_ids = _to_array(v_ids, np.int64, v_lines, path, ("id",), _int).reshape(-1)
     v_vals = _to_array(v_vals, float, v_lines, path, _VERTEX_FIELDS, _float).reshape(-1, 3)

@@ -60,6 +60,7 @@ def test_construction_and_immutability():
         ),
         (dict(measurements=[[1, 0]] * 3), r"measurements must have shape \(4, 3\); got \(3, 2\)"),
         (dict(edges=[[0, np.nan], [1, 2], [2, 3], [3, 0]]), r"integer vertex indices"),
+        (dict(edges=[[0, np.inf], [1, 2], [2, 3], [3, 0]]), r"integer vertex indices"),
         (dict(edges=[["0", "1"]] * 4), r"edges must be a numeric array"),
         (
             dict(information=np.tile(np.eye(3), (3, 1, 1))),
