@@ -2,7 +2,8 @@
 
 Layers (each imports only from the ones before it)::
 
-    errors, se2 -> graph -> io, simulate, datasets -> plotting
+    errors, se2 -> graph -> io, simulate, datasets -> linalg -> gauss_newton
+    -> plotting -> uncertainty;   symbolic (sympy only)
 
 Public API
 ----------
@@ -18,22 +19,34 @@ simulate
 datasets
     Public benchmarks by name (``LAGOLIB_DATA`` mirror or checksummed download) and the shipped
     examples.
+linalg
+    Sparse Cholesky with pluggable backends, preconditioned conjugate gradients.
+gauss_newton, optimize, Prior
+    The lecture notes' least squares: Jacobians, ``H`` and ``b`` (loop and vectorized),
+    Gauss–Newton and Levenberg–Marquardt, gauge by prior or fixed poses.
+uncertainty
+    Marginal and relative covariances from the sparse ``H``, loop-closure gating.
+symbolic
+    sympy derivations of the error and its Jacobians.
 plotting
-    ``plot_graph``, ``plot_trajectories``, ``plot_poses``.
+    ``plot_graph``, ``plot_trajectories``, ``plot_poses``, ``plot_covariance_ellipses``.
 """
 
-from . import datasets, plotting, se2, simulate
+from . import datasets, gauss_newton, linalg, plotting, se2, simulate, symbolic, uncertainty
 from .errors import (
     DatasetError,
+    GaugeError,
     GraphError,
     LagolibError,
     LagolibWarning,
+    NotPositiveDefiniteError,
     ParseError,
     SkippedLinesWarning,
 )
+from .gauss_newton import OptimizeResult, Prior, optimize
 from .graph import PoseGraph, chi2, residuals
 from .io import read, read_g2o, read_poses, read_toro, write, write_g2o, write_poses, write_toro
-from .plotting import plot_graph, plot_poses, plot_trajectories
+from .plotting import plot_covariance_ellipses, plot_graph, plot_poses, plot_trajectories
 
 __version__ = "0.1.0"
 
@@ -42,6 +55,10 @@ __all__ = [
     "simulate",
     "datasets",
     "plotting",
+    "linalg",
+    "gauss_newton",
+    "uncertainty",
+    "symbolic",
     "PoseGraph",
     "residuals",
     "chi2",
@@ -56,10 +73,16 @@ __all__ = [
     "plot_graph",
     "plot_trajectories",
     "plot_poses",
+    "plot_covariance_ellipses",
+    "optimize",
+    "OptimizeResult",
+    "Prior",
     "LagolibError",
     "GraphError",
     "ParseError",
     "DatasetError",
+    "GaugeError",
+    "NotPositiveDefiniteError",
     "LagolibWarning",
     "SkippedLinesWarning",
 ]

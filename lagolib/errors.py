@@ -13,6 +13,8 @@ __all__ = [
     "GraphError",
     "ParseError",
     "DatasetError",
+    "GaugeError",
+    "NotPositiveDefiniteError",
     "LagolibWarning",
     "SkippedLinesWarning",
 ]
@@ -56,6 +58,38 @@ class ParseError(LagolibError, ValueError):
 
 class DatasetError(LagolibError):
     """A named dataset is unknown, missing from the local mirror, or fails its checksum."""
+
+
+class GaugeError(LagolibError, ValueError):
+    """The least-squares system has no unique solution: some poses have no gauge.
+
+    The error of a pose graph depends only on relative poses, so moving a whole connected
+    component rigidly changes nothing and ``H`` is singular.  Each component needs one fixed pose
+    or a prior (lecture notes, "Role of the Prior" and "Fixing a Subset of Variables").
+
+    Attributes
+    ----------
+    vertices : list of int
+        Vertex ids of the first component without a gauge.
+    """
+
+    def __init__(self, message: str, *, vertices=()):
+        super().__init__(message)
+        self.vertices = list(vertices)
+
+
+class NotPositiveDefiniteError(LagolibError, ArithmeticError):
+    """A matrix that had to be symmetric positive definite is not, numerically.
+
+    Attributes
+    ----------
+    pivot : int or None
+        Row (in the matrix's own ordering) of the first non-positive pivot, when known.
+    """
+
+    def __init__(self, message: str, *, pivot: int | None = None):
+        super().__init__(message)
+        self.pivot = pivot
 
 
 class LagolibWarning(UserWarning):

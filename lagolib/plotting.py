@@ -8,7 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["plot_graph", "plot_trajectories", "plot_poses"]
+__all__ = [
+    "plot_graph",
+    "plot_trajectories",
+    "plot_poses",
+    "covariance_ellipse",
+    "plot_covariance_ellipses",
+]
 
 
 def _axes(ax):
@@ -143,6 +149,84 @@ def plot_poses(poses, ax=None, *, length=None, labels=None, color="k", **kw):
     ax.plot(p[:, 0], p[:, 1], "o", color=color, markersize=3)
     for text, q in zip(labels or [], p):
         ax.annotate(text, (q[0], q[1]), textcoords="offset points", xytext=(5, -12))
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
+    return ax
+
+
+def covariance_ellipse(cov, n_sigma=3.0):
+    """Axes and orientation of the ``n_sigma`` ellipse of the ``(x, y)`` block of a covariance.
+
+    Parameters
+    ----------
+    cov : array_like, shape (..., 2, 2) or (..., 3, 3)
+        Only the top-left 2x2 block is used.
+    n_sigma : float
+
+    Returns
+    -------
+    width, height : ndarray, shape (...)
+        Full axis lengths, ``2 n_sigma sqrt(eigenvalue)``, major first.
+    angle : ndarray, shape (...)
+        Angle of the major axis from the x axis, in degrees.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from lagolib.plotting import covariance_ellipse
+    >>> w, h, a = covariance_ellipse(np.diag([4.0, 1.0]), n_sigma=1)
+    >>> float(w), float(h), float(a)
+    (4.0, 2.0, 0.0)
+    """
+    cov = np.asarray(cov, dtype=float)[..., :2, :2]
+    vals, vecs = np.linalg.eigh(cov)
+    vals = np.clip(vals, 0.0, None)
+    major = vecs[..., :, 1]
+    angle = np.degrees(np.arctan2(major[..., 1], major[..., 0]))
+    angle = np.where(angle > 90, angle - 180, np.where(angle <= -90, angle + 180, angle))
+    return 2 * n_sigma * np.sqrt(vals[..., 1]), 2 * n_sigma * np.sqrt(vals[..., 0]), angle + 0.0
+
+
+def plot_covariance_ellipses(
+    poses, covariances, ax=None, *, n_sigma=3.0, every=1, color="C3", **kw
+):
+    """Draw the ``n_sigma`` position-uncertainty ellipse of each pose.
+
+    Parameters
+    ----------
+    poses : array_like, shape (k, 3)
+        Centres (only ``x, y`` are used).
+    covariances : array_like, shape (k, 3, 3) or (k, 2, 2)
+        World-frame covariances, e.g. from :func:`lagolib.uncertainty.marginal_covariances`;
+        the ``(x, y)`` block is drawn.
+    ax : matplotlib.axes.Axes, optional
+    n_sigma : float
+        Scale of the ellipses (3: 98.9 % of a 2D Gaussian's mass inside).
+    every : int
+        Draw every ``every``-th ellipse.
+    color : color
+    **kw
+        Passed to :class:`matplotlib.collections.EllipseCollection`.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    from matplotlib.collections import EllipseCollection
+
+    ax = _axes(ax)
+    p = np.atleast_2d(np.asarray(poses, dtype=float))[::every]
+    cov = np.asarray(covariances, dtype=float)[::every]
+    if len(p) != len(cov):
+        raise ValueError(f"{len(p)} poses but {len(cov)} covariances")
+    w, h, a = covariance_ellipse(cov, n_sigma)
+    kw.setdefault("facecolors", "none")
+    kw.setdefault("linewidths", 0.8)
+    coll = EllipseCollection(
+        w, h, a, units="xy", offsets=p[:, :2], offset_transform=ax.transData, edgecolors=color, **kw
+    )
+    ax.add_collection(coll)
+    ax.update_datalim(np.concatenate([p[:, :2] + w[:, None] / 2, p[:, :2] - w[:, None] / 2]))
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     return ax

@@ -14,6 +14,8 @@ The operations are the ones of the lecture notes' "Transformations" slide and of
 * ``inverse(p)`` is ``⊖p`` (``v2t(p)^-1``);
 * ``between(p_i, p_j)`` is ``p_j ⊖ p_i`` (``v2t(p_i)^-1 v2t(p_j)``): where ``j`` is, seen from
   ``i``.  This is what a relative pose measurement ``z_ij`` measures.
+* ``log`` / ``exp`` are the Lie-group logarithm and exponential of SE(2), the coordinates GTSAM
+  measures its errors in (``Pose2.Logmap``); ``log_jacobian`` is the derivative of ``log``.
 
 Angles returned by these functions are wrapped to ``(-pi, pi]``.
 
@@ -33,7 +35,18 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["wrap_angle", "rotation", "v2t", "t2v", "compose", "inverse", "between"]
+__all__ = [
+    "wrap_angle",
+    "rotation",
+    "v2t",
+    "t2v",
+    "compose",
+    "inverse",
+    "between",
+    "log",
+    "exp",
+    "log_jacobian",
+]
 
 _TWO_PI = 2.0 * np.pi
 
@@ -199,3 +212,115 @@ def between(p_i, p_j):
     x = c * dx + s * dy
     y = -s * dx + c * dy
     return np.stack([x, y, wrap_angle(p_j[..., 2] - p_i[..., 2])], axis=-1)
+
+
+# h cot h = sum_n (-1)^n 2^(2n) B_2n h^(2n) / (2n)!: its Taylor coefficients in h^2 (for |h| small,
+# where the closed forms cancel catastrophically)
+_HCOT = (1.0, -1.0 / 3.0, -1.0 / 45.0, -2.0 / 945.0, -1.0 / 4725.0)
+_SMALL = 1e-2
+
+
+def _half_cot(theta):
+    """``c = h cot h`` with ``h = theta/2``, and ``dc/dtheta``; both smooth through 0."""
+    h = 0.5 * np.asarray(theta, dtype=float)
+    small = np.abs(h) < _SMALL
+    hs = np.where(small, 1.0, h)  # keeps the closed forms finite where the series is used
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c_exact = hs * np.cos(hs) / np.sin(hs)
+        dc_exact = 0.5 * (np.cos(hs) / np.sin(hs) - hs / np.sin(hs) ** 2)
+    h2 = h * h
+    c_series = _HCOT[0] + h2 * (_HCOT[1] + h2 * (_HCOT[2] + h2 * (_HCOT[3] + h2 * _HCOT[4])))
+    # d/dtheta = 1/2 d/dh
+    dc_series = h * (_HCOT[1] + h2 * (2 * _HCOT[2] + h2 * (3 * _HCOT[3] + h2 * 4 * _HCOT[4])))
+    return np.where(small, c_series, c_exact), np.where(small, dc_series, dc_exact)
+
+
+def log(p):
+    """Logarithm of SE(2): the twist ``v = (v_x, v_y, theta)`` with ``exp(v) = p``.
+
+    With ``h = theta / 2`` (``theta`` wrapped to ``(-pi, pi]``)::
+
+        (v_x, v_y) = V(theta)^-1 (x, y),   V(theta)^-1 = [[h cot h, h], [-h, h cot h]]
+
+    This is GTSAM's ``Pose2.Logmap``: GTSAM measures the error of a ``BetweenFactorPose2`` as
+    ``log(Z_ij^-1 X_i^-1 X_j)`` where the lecture notes (and g2o) take ``t2v`` of the same
+    transform.  The two agree in the angle and to first order in the translation.
+
+    Parameters
+    ----------
+    p : array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from lagolib import se2
+    >>> v = np.array([1.0, -2.0, 0.5])
+    >>> np.allclose(se2.log(se2.exp(v)), v)
+    True
+    """
+    p = _as_poses(p)
+    theta = wrap_angle(p[..., 2])
+    c, _ = _half_cot(theta)
+    h = 0.5 * theta
+    vx = c * p[..., 0] + h * p[..., 1]
+    vy = -h * p[..., 0] + c * p[..., 1]
+    return np.stack([vx, vy, theta], axis=-1)
+
+
+def exp(v):
+    """Exponential of SE(2): the pose reached by the twist ``v = (v_x, v_y, theta)``.
+
+    ``(x, y) = V(theta) (v_x, v_y)`` with ``V = [[sin t / t, -(1 - cos t) / t],
+    [(1 - cos t) / t, sin t / t]]`` (``V = I`` at ``theta = 0``); the angle is wrapped.
+
+    Parameters
+    ----------
+    v : array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+    """
+    v = _as_poses(v, "v")
+    t = v[..., 2]
+    small = np.abs(t) < _SMALL
+    ts = np.where(small, 1.0, t)
+    t2 = t * t
+    a = np.where(small, 1.0 - t2 / 6.0 * (1.0 - t2 / 20.0 * (1.0 - t2 / 42.0)), np.sin(ts) / ts)
+    b = np.where(small, t / 2.0 * (1.0 - t2 / 12.0 * (1.0 - t2 / 30.0)), (1.0 - np.cos(ts)) / ts)
+    x = a * v[..., 0] - b * v[..., 1]
+    y = b * v[..., 0] + a * v[..., 1]
+    return np.stack([x, y, wrap_angle(t)], axis=-1)
+
+
+def log_jacobian(p):
+    """Derivative of :func:`log` with respect to ``p = (x, y, theta)``.
+
+    With ``c = h cot h``, ``h = theta / 2`` and ``c' = dc/dtheta``::
+
+        d log / d p = [[ c,  h, c' x + y / 2],
+                       [-h,  c, c' y - x / 2],
+                       [ 0,  0, 1          ]]
+
+    Parameters
+    ----------
+    p : array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
+    p = _as_poses(p)
+    theta = wrap_angle(p[..., 2])
+    c, dc = _half_cot(theta)
+    h = 0.5 * theta
+    x, y = p[..., 0], p[..., 1]
+    D = np.zeros(p.shape[:-1] + (3, 3))
+    D[..., 0, 0], D[..., 0, 1], D[..., 0, 2] = c, h, dc * x + 0.5 * y
+    D[..., 1, 0], D[..., 1, 1], D[..., 1, 2] = -h, c, dc * y - 0.5 * x
+    D[..., 2, 2] = 1.0
+    return D

@@ -124,3 +124,44 @@ def test_bad_shapes_are_reported():
         se2.compose(np.zeros(2), np.zeros(3))
     with pytest.raises(ValueError, match=r"\(\.\.\., 3, 3\)"):
         se2.t2v(np.eye(2))
+
+
+def test_log_and_exp_are_inverse_and_match_gtsam():
+    rng = np.random.default_rng(50)
+    v = rng.normal(size=(400, 3)) * [3, 3, 1]
+    v[:, 2] = rng.uniform(-3.1, 3.1, 400)  # log returns angles in (-pi, pi]
+    v[:20, 2] *= 1e-6  # through the small-angle series
+    v[20, 2] = 0.0
+    np.testing.assert_allclose(se2.log(se2.exp(v)), v, atol=1e-12)
+    p = rng.normal(size=(400, 3)) * [3, 3, 1.5]
+    p[:, 2] = se2.wrap_angle(p[:, 2])
+    np.testing.assert_allclose(se2.exp(se2.log(p)), p, atol=1e-12)
+    gtsam = pytest.importorskip("gtsam")
+    for k in range(0, 400, 7):
+        np.testing.assert_allclose(
+            se2.log(p[k]), gtsam.Pose2.Logmap(gtsam.Pose2(*p[k])), atol=1e-12
+        )
+        q = gtsam.Pose2.Expmap(v[k])
+        np.testing.assert_allclose(se2.exp(v[k]), [q.x(), q.y(), q.theta()], atol=1e-12)
+
+
+def test_log_jacobian_equals_central_differences_on_both_sides_of_the_series():
+    rng = np.random.default_rng(51)
+    p = rng.normal(size=(300, 3)) * [2, 2, 1]
+    p[:100, 2] = rng.uniform(-0.03, 0.03, 100)  # around the switch at |theta| = 0.02
+    D = se2.log_jacobian(p)
+    h = 1e-6
+    for a in range(3):
+        d = np.zeros(3)
+        d[a] = h
+        F = (se2.log(p + d) - se2.log(p - d)) / (2 * h)
+        np.testing.assert_allclose(D[..., a], F, atol=1e-8)
+
+
+def test_log_is_continuous_at_the_series_switch():
+    theta = np.array([0.02 - 1e-15, 0.02, 0.02 + 1e-15, -0.02])
+    p = np.stack([np.full(4, 2.0), np.full(4, -1.0), theta], axis=1)
+    out = se2.log(p)
+    assert np.ptp(out[:3, 0]) < 1e-14 and np.ptp(out[:3, 1]) < 1e-14
+    D = se2.log_jacobian(p)
+    assert np.ptp(D[:3], axis=0).max() < 1e-13

@@ -1,0 +1,834 @@
+"""Least-squares graph SLAM as in the lecture notes: Jacobians, ``H`` and ``b``, Gauss–Newton, LM.
+
+The lecture notes ("Least Square SLAM") minimize
+
+.. math:: F(x) = \\sum_{ij} e_{ij}^T \\Omega_{ij} e_{ij}, \\qquad
+          e_{ij} = t2v(Z_{ij}^{-1} X_i^{-1} X_j)
+
+by linearizing every error around the current guess, ``e_ij(x + dx) ≈ e_ij + A_ij dx_i +
+B_ij dx_j``, building the normal equations ``H dx = -b`` one constraint at a time, solving them
+with a sparse factorization and updating ``x <- x + dx`` until convergence ("Algorithm").  This
+module has each piece:
+
+* :func:`edge_jacobians` — ``e_ij``, ``A_ij = de/dx_i`` and ``B_ij = de/dx_j`` for all edges at
+  once, shape ``(m, 3, 3)`` (:mod:`lagolib.symbolic` derives the same blocks with sympy);
+* :func:`build_linear_system_loop` — "Building the Linear System" literally, one constraint at a
+  time: the readable reference;
+* :class:`LinearSystem` — the same ``H`` and ``b`` assembled for all edges at once into a sparse
+  matrix whose pattern is computed once per graph and reused at every iteration;
+* :class:`Prior` and ``fixed=`` — the two ways to fix the gauge ("Role of the Prior",
+  "Fixing a Subset of Variables"); :func:`check_gauge` says what is missing;
+* :func:`optimize` — Gauss–Newton (with step control) or Levenberg–Marquardt.
+
+Poses are updated additively, ``(x, y, theta) <- (x, y, theta) + dx`` with the angle wrapped, as
+in the notes.  Two error definitions are offered: ``error="t2v"`` (the notes' and g2o's) and
+``error="log"`` (GTSAM's: the SE(2) logarithm :func:`lagolib.se2.log` in place of ``t2v``).  They
+have different optima; choose ``"log"`` to reproduce GTSAM's numbers.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from . import se2
+from .errors import GaugeError, GraphError, NotPositiveDefiniteError
+from .graph import ERRORS, PoseGraph, _check_error, _numeric
+from .linalg import SparseCholesky, pcg
+
+__all__ = [
+    "Prior",
+    "edge_jacobians",
+    "prior_jacobian",
+    "build_linear_system_loop",
+    "reduce_system",
+    "LinearSystem",
+    "check_gauge",
+    "optimize",
+    "OptimizeResult",
+]
+
+
+# ----------------------------------------------------------------------------- Jacobians
+def edge_jacobians(p_i, p_j, z, *, error="t2v"):
+    """Error ``e_ij`` and its Jacobian blocks ``A_ij``, ``B_ij`` (lecture notes, "Compute the blocks
+    of the Jacobian").
+
+    For ``error="t2v"``, with ``R_iz = R(theta_i + theta_z)`` and ``dt = t_j - t_i``::
+
+        e_ij = [ R_iz^T dt - R_z^T t_z ;  wrap(theta_j - theta_i - theta_z) ]
+
+        A_ij = de/dx_i = [[ -R_iz^T , dR_iz^T/dtheta dt ],      B_ij = de/dx_j = [[ R_iz^T, 0 ],
+                          [  0  0   ,        -1         ]]                        [ 0  0 , 1 ]]
+
+    For ``error="log"`` the error is ``log(u)`` of the ``t2v`` error ``u`` and the blocks are
+    ``D(u) A_ij``, ``D(u) B_ij`` with ``D = d log / du`` (:func:`lagolib.se2.log_jacobian`).
+
+    Parameters
+    ----------
+    p_i, p_j : array_like, shape (..., 3)
+        Poses ``x_i`` and ``x_j``.
+    z : array_like, shape (..., 3)
+        Measurements ``z_ij``.
+    error : {"t2v", "log"}
+
+    Returns
+    -------
+    e : ndarray, shape (..., 3)
+    A, B : ndarray, shape (..., 3, 3)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> e, A, B = edge_jacobians(np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([1.0, 0, 0]))
+    >>> e.round(12) + 0.0
+    array([0., 0., 0.])
+    >>> A + 0.0  # x_j is 1 m ahead of x_i: turning x_i moves it sideways
+    array([[-1.,  0.,  0.],
+           [ 0., -1., -1.],
+           [ 0.,  0., -1.]])
+    """
+    _check_error(error)
+    p_i, p_j, z = np.broadcast_arrays(
+        se2._as_poses(p_i, "p_i"), se2._as_poses(p_j, "p_j"), se2._as_poses(z, "z")
+    )
+    a = p_i[..., 2] + z[..., 2]
+    c, s = np.cos(a), np.sin(a)
+    cz, sz = np.cos(z[..., 2]), np.sin(z[..., 2])
+    dx = p_j[..., 0] - p_i[..., 0]
+    dy = p_j[..., 1] - p_i[..., 1]
+    e = np.empty(p_i.shape)
+    # R_iz^T dt - R_z^T t_z  ==  R_z^T (R_i^T (t_j - t_i) - t_z)
+    e[..., 0] = c * dx + s * dy - (cz * z[..., 0] + sz * z[..., 1])
+    e[..., 1] = -s * dx + c * dy - (-sz * z[..., 0] + cz * z[..., 1])
+    e[..., 2] = se2.wrap_angle(p_j[..., 2] - p_i[..., 2] - z[..., 2])
+    B = np.zeros(p_i.shape + (3,))
+    B[..., 0, 0], B[..., 0, 1] = c, s
+    B[..., 1, 0], B[..., 1, 1] = -s, c
+    B[..., 2, 2] = 1.0
+    A = -B
+    A[..., 0, 2] = -s * dx + c * dy  # d(R_iz^T)/dtheta_i dt, first row
+    A[..., 1, 2] = -c * dx - s * dy
+    if error == "log":
+        D = se2.log_jacobian(e)
+        return se2.log(e), D @ A, D @ B
+    return e, A, B
+
+
+def prior_jacobian(p, mean, *, error="t2v"):
+    """Error of a pose prior and its Jacobian (lecture notes, "Role of the Prior").
+
+    ``e = t2v(M^-1 X)`` — the notes' ``e(x_0) = t2v(x_0)`` for a prior at the origin — so
+    ``J = de/dx = [[R_m^T, 0], [0, 1]]``.  With ``error="log"``, ``e = log(M^-1 X)`` (GTSAM's
+    ``PriorFactorPose2``) and ``J = D(u) [[R_m^T, 0], [0, 1]]``.
+
+    Parameters
+    ----------
+    p, mean : array_like, shape (..., 3)
+    error : {"t2v", "log"}
+
+    Returns
+    -------
+    e : ndarray, shape (..., 3)
+    J : ndarray, shape (..., 3, 3)
+    """
+    _check_error(error)
+    p, mean = np.broadcast_arrays(se2._as_poses(p), se2._as_poses(mean, "mean"))
+    e = se2.between(mean, p)
+    c, s = np.cos(mean[..., 2]), np.sin(mean[..., 2])
+    J = np.zeros(p.shape + (3,))
+    J[..., 0, 0], J[..., 0, 1] = c, s
+    J[..., 1, 0], J[..., 1, 1] = -s, c
+    J[..., 2, 2] = 1.0
+    if error == "log":
+        D = se2.log_jacobian(e)
+        return se2.log(e), D @ J
+    return e, J
+
+
+# ----------------------------------------------------------------------------- gauge
+@dataclass(frozen=True)
+class Prior:
+    """A Gaussian prior on one pose: an extra unary constraint ``e = t2v(M^-1 X)``.
+
+    Lecture notes, "Role of the Prior": a Gaussian estimate of ``x_0`` fixes the global reference
+    frame.
+
+    Parameters
+    ----------
+    vertex : int
+        Vertex id (as in the file) of the pose.
+    mean : array_like, shape (3,)
+        ``M``, default the origin.
+    information : array_like, shape (3, 3)
+        Default ``diag(1e6, 1e6, 1e8)``: standard deviations 1 mm and 0.1 mrad (GTSAM examples'
+        ``(1e-3, 1e-3, 1e-4)``).
+    """
+
+    vertex: int
+    mean: tuple = (0.0, 0.0, 0.0)
+    information: tuple = ((1e6, 0.0, 0.0), (0.0, 1e6, 0.0), (0.0, 0.0, 1e8))
+
+    def __post_init__(self):
+        mean = _numeric(self.mean, "Prior mean", float)
+        info = _numeric(self.information, "Prior information", float)
+        if mean.shape != (3,) or not np.all(np.isfinite(mean)):
+            raise GraphError(f"Prior mean must be 3 finite numbers; got {self.mean!r}")
+        if info.shape != (3, 3) or not np.all(np.isfinite(info)):
+            raise GraphError(f"Prior information must be a finite 3x3 matrix; got {info.tolist()}")
+        if not np.allclose(info, info.T, rtol=1e-12, atol=0) or np.linalg.eigvalsh(info)[0] <= 0:
+            raise GraphError(
+                f"Prior information must be symmetric positive definite; got {info.tolist()}"
+            )
+        object.__setattr__(self, "mean", tuple(mean.tolist()))
+        object.__setattr__(self, "information", tuple(map(tuple, info.tolist())))
+
+    @classmethod
+    def from_sigmas(cls, vertex, mean=(0.0, 0.0, 0.0), sigmas=(1e-3, 1e-3, 1e-4)):
+        """A prior with diagonal covariance ``diag(sigmas)^2``."""
+        sig = _numeric(sigmas, "Prior sigmas", float)
+        if sig.shape != (3,) or not np.all(sig > 0):
+            raise GraphError(f"Prior sigmas must be 3 positive numbers; got {sigmas!r}")
+        return cls(vertex, mean, np.diag(1.0 / sig**2))
+
+
+def _as_priors(prior):
+    if prior is None:
+        return ()
+    if isinstance(prior, Prior):
+        return (prior,)
+    priors = tuple(prior)
+    for p in priors:
+        if not isinstance(p, Prior):
+            raise TypeError(f"prior must be a Prior or a sequence of Prior; got {type(p).__name__}")
+    return priors
+
+
+def _vertex_indices(graph, vertices, what):
+    """Row indices of vertex ids, with an error naming an unknown id."""
+    ids = np.asarray(graph.ids)
+    vertices = np.atleast_1d(np.asarray(vertices, dtype=object))
+    out = []
+    if vertices.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    sorter = np.argsort(ids, kind="stable")
+    for v in vertices:
+        if isinstance(v, bool | np.bool_) or not isinstance(v, int | np.integer):
+            raise GraphError(f"{what}: vertex ids are integers; got {v!r}")
+        k = np.searchsorted(ids, v, sorter=sorter)
+        if k >= len(ids) or ids[sorter[k]] != v:
+            raise GraphError(
+                f"{what}: vertex id {v} is not in the graph (ids run from {ids.min()} to "
+                f"{ids.max()})"
+            )
+        out.append(sorter[k])
+    return np.asarray(out, dtype=np.int64)
+
+
+def check_gauge(graph, fixed=(), prior=None):
+    """Raise :class:`~lagolib.GaugeError` unless every connected component is anchored.
+
+    The χ² of a pose graph depends only on relative poses, so ``H`` is singular unless each
+    connected component has a fixed pose or a prior.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    fixed : sequence of int
+        Vertex ids held fixed.
+    prior : Prior or sequence of Prior, optional
+
+    Raises
+    ------
+    GaugeError
+        Naming the first component without a gauge and what to pass.
+    """
+    fixed_idx = _vertex_indices(graph, fixed, "fixed")
+    prior_idx = _vertex_indices(graph, [p.vertex for p in _as_priors(prior)], "prior")
+    count, labels = graph.components()
+    anchored = np.zeros(count, dtype=bool)
+    anchored[labels[np.concatenate([fixed_idx, prior_idx])]] = True
+    missing = np.flatnonzero(~anchored)
+    if missing.size == 0:
+        return
+    comp = np.flatnonzero(labels == missing[0])
+    ids = np.sort(np.asarray(graph.ids)[comp])
+    shown = ", ".join(map(str, ids[:8])) + (", ..." if ids.size > 8 else "")
+    where = (
+        f"the graph has {count} connected components and {missing.size} of them "
+        f"{'has' if missing.size == 1 else 'have'} no gauge; the first is vertex ids [{shown}] "
+        f"({ids.size} vertices)"
+        if count > 1
+        else "the graph has no gauge"
+    )
+    raise GaugeError(
+        f"H is singular: {where}. Nothing fixes where this part of the map is: fix one of its "
+        f"poses (fixed=[{ids[0]}]) or add a prior (prior=lagolib.Prior({ids[0]}))",
+        vertices=ids.tolist(),
+    )
+
+
+# ----------------------------------------------------------------------------- H and b
+def build_linear_system_loop(graph, poses=None, *, prior=None, error="t2v"):
+    """``H`` and ``b`` built one constraint at a time — the lecture notes' algorithm, literally.
+
+    Lecture notes, "Building the Linear System": for each constraint
+
+    1. compute the error ``e_ij``;
+    2. compute the blocks of the Jacobian ``A_ij``, ``B_ij``;
+    3. update the coefficient vector: ``b_i += A_ij^T Omega_ij e_ij``, ``b_j += B_ij^T Omega_ij e_ij``;
+    4. update the normal-equation matrix: ``H_ii += A^T Omega A``, ``H_ij += A^T Omega B``,
+       ``H_ji += B^T Omega A``, ``H_jj += B^T Omega B``.
+
+    (The slide's last two lines swap the ``ij``/``jj`` labels; the blocks above are the ones
+    ``J_ij^T Omega J_ij`` gives.)  This is the readable reference; :class:`LinearSystem` computes
+    the same numbers vectorized.  Nothing is fixed here: pass the result to :func:`reduce_system`.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    poses : array_like, shape (n, 3), optional
+        Linearization point, default ``graph.poses``.
+    prior : Prior or sequence of Prior, optional
+        Unary constraints, added like edges with only an ``A`` block.
+    error : {"t2v", "log"}
+
+    Returns
+    -------
+    H : scipy.sparse.csr_matrix, shape (3n, 3n)
+    b : ndarray, shape (3n,)
+    """
+    x = graph.poses if poses is None else _initial(graph, poses)
+    blocks = {}
+    b = np.zeros((graph.n, 3))
+
+    def add(r, c, block):
+        blocks[r, c] = blocks.get((r, c), 0.0) + block
+
+    for k in range(graph.m):
+        i, j = graph.edges[k]
+        omega = graph.information[k]
+        e, A, B = edge_jacobians(x[i], x[j], graph.measurements[k], error=error)  # steps 1 and 2
+        b[i] += A.T @ omega @ e  # step 3
+        b[j] += B.T @ omega @ e
+        add(i, i, A.T @ omega @ A)  # step 4
+        add(i, j, A.T @ omega @ B)
+        add(j, i, B.T @ omega @ A)
+        add(j, j, B.T @ omega @ B)
+    for p in _as_priors(prior):
+        (k,) = _vertex_indices(graph, [p.vertex], "prior")
+        omega = np.asarray(p.information)
+        e, J = prior_jacobian(x[k], p.mean, error=error)
+        b[k] += J.T @ omega @ e
+        add(k, k, J.T @ omega @ J)
+    rows, cols, vals = [], [], []
+    for (r, c), block in blocks.items():
+        rr, cc = np.meshgrid(3 * r + np.arange(3), 3 * c + np.arange(3), indexing="ij")
+        rows.append(rr.ravel())
+        cols.append(cc.ravel())
+        vals.append(np.ravel(block))
+    N = 3 * graph.n
+    if not rows:
+        return sp.csr_matrix((N, N)), b.ravel()
+    H = sp.coo_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(N, N)
+    )
+    return H.tocsr(), b.ravel()
+
+
+def reduce_system(graph, H, b, fixed):
+    """Delete the rows and columns of fixed poses (lecture notes, "Fixing a Subset of Variables").
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    H : sparse matrix, shape (3n, 3n)
+    b : ndarray, shape (3n,)
+    fixed : sequence of int
+        Vertex ids to hold fixed.
+
+    Returns
+    -------
+    H_free : scipy.sparse.csr_matrix, shape (3k, 3k)
+    b_free : ndarray, shape (3k,)
+        ``k = n - len(fixed)``, free poses in row order of the graph.
+    """
+    keep = np.ones(graph.n, dtype=bool)
+    keep[_vertex_indices(graph, fixed, "fixed")] = False
+    rows = (3 * np.flatnonzero(keep)[:, None] + np.arange(3)).ravel()
+    H = sp.csr_matrix(H)
+    return H[rows][:, rows], np.asarray(b)[rows]
+
+
+class LinearSystem:
+    """``H`` and ``b`` for all constraints at once, in a sparsity pattern computed once.
+
+    The pattern — which 3x3 blocks of ``H`` are non-zero — depends only on the edges, the fixed
+    poses and the priors, so it is computed in the constructor (a ``np.unique`` over the block
+    entries of all edges).  :meth:`assemble` then evaluates the blocks ``J^T Omega J`` of every
+    edge at once and adds them into the CSR data array with one ``np.bincount``.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    fixed : sequence of int
+        Vertex ids held fixed: their rows and columns are left out ("Fixing a Subset of
+        Variables").
+    prior : Prior or sequence of Prior, optional
+    error : {"t2v", "log"}
+
+    Attributes
+    ----------
+    free : ndarray of int, shape (k,)
+        Row indices (into ``graph.poses``) of the free poses; block ``r`` of ``H`` is pose
+        ``free[r]``.
+    N : int
+        ``3 k``, the size of ``H``.
+    nnz : int
+        Stored entries of ``H`` (both triangles).
+    """
+
+    def __init__(self, graph, *, fixed=(), prior=None, error="t2v"):
+        if not isinstance(graph, PoseGraph):
+            raise TypeError(f"graph must be a PoseGraph; got {type(graph).__name__}")
+        _check_error(error)
+        self.graph, self.error = graph, error
+        self.priors = _as_priors(prior)
+        n = graph.n
+        fixed_idx = _vertex_indices(graph, fixed, "fixed")
+        is_free = np.ones(n, dtype=bool)
+        is_free[fixed_idx] = False
+        self.fixed = np.flatnonzero(~is_free)
+        self.free = np.flatnonzero(is_free)
+        red = np.full(n, -1, dtype=np.int64)
+        red[self.free] = np.arange(self.free.size)
+        self._red = red
+        N = self.N = 3 * self.free.size
+        e = graph.edges
+        comp = np.arange(3)
+        # rows of the 6 unknowns [x_i; x_j] of every edge in H, -1 where the pose is fixed
+        blk = red[np.repeat(e, 3, axis=1)]
+        rows6 = np.where(blk >= 0, 3 * blk + np.tile(comp, 2), -1)  # (m, 6)
+        self._prior_idx = _vertex_indices(graph, [p.vertex for p in self.priors], "prior")
+        self._prior_mean = np.array([p.mean for p in self.priors], dtype=float).reshape(-1, 3)
+        self._prior_info = np.array([p.information for p in self.priors], float).reshape(-1, 3, 3)
+        pblk = red[self._prior_idx]
+        rows3 = np.where(pblk[:, None] >= 0, 3 * pblk[:, None] + comp, -1)  # (p, 3)
+
+        def entries(rows):
+            R = np.broadcast_to(rows[:, :, None], rows.shape + rows.shape[1:])
+            C = np.broadcast_to(rows[:, None, :], R.shape)
+            keep = ((R >= 0) & (C >= 0)).ravel()
+            return keep, (R.ravel() * N + C.ravel())[keep]
+
+        self._keep_e, keys_e = entries(rows6)
+        self._keep_p, keys_p = entries(rows3)
+        diag = 3 * np.arange(self.free.size)[:, None] + comp  # every free pose's diagonal block
+        _, keys_d = entries(diag)
+        keys = np.concatenate([keys_e, keys_p, keys_d])
+        uniq, inverse = np.unique(keys, return_inverse=True)
+        self._slot = inverse[: keys_e.size + keys_p.size]
+        self.nnz = uniq.size
+        rows, cols = np.divmod(uniq, N) if N else (uniq, uniq)
+        self._indptr = np.zeros(N + 1, dtype=np.int32)
+        np.cumsum(np.bincount(rows, minlength=N), out=self._indptr[1:])
+        self._indices = cols.astype(np.int32)
+        self._diag_slot = np.searchsorted(uniq, np.arange(N) * (N + 1))
+        self._rows_b_e = rows6.ravel()
+        self._keep_b_e = self._rows_b_e >= 0
+        self._rows_b_p = rows3.ravel()
+        self._keep_b_p = self._rows_b_p >= 0
+
+    def _terms(self, poses):
+        g = self.graph
+        e, A, B = edge_jacobians(
+            poses[g.edges[:, 0]], poses[g.edges[:, 1]], g.measurements, error=self.error
+        )
+        ep, Jp = prior_jacobian(poses[self._prior_idx], self._prior_mean, error=self.error)
+        return e, np.concatenate([A, B], axis=2), ep, Jp
+
+    def objective(self, poses):
+        """χ² of the edges plus the priors' terms at ``poses`` (shape (n, 3))."""
+        g = self.graph
+        e = edge_jacobians(
+            poses[g.edges[:, 0]], poses[g.edges[:, 1]], g.measurements, error=self.error
+        )[0]
+        ep = prior_jacobian(poses[self._prior_idx], self._prior_mean, error=self.error)[0]
+        return float(
+            np.einsum("ka,kab,kb->", e, g.information, e)
+            + np.einsum("ka,kab,kb->", ep, self._prior_info, ep)
+        )
+
+    def assemble(self, poses):
+        """``H``, ``b`` and the objective at ``poses``.
+
+        Parameters
+        ----------
+        poses : ndarray, shape (n, 3)
+            Linearization point (fixed poses included).
+
+        Returns
+        -------
+        H : scipy.sparse.csr_matrix, shape (N, N)
+            ``sum_ij J_ij^T Omega_ij J_ij`` over edges and priors (lecture notes, "Consequences of
+            the Sparsity"), free poses only.  Symmetric; both triangles stored.
+        b : ndarray, shape (N,)
+            ``sum_ij J_ij^T Omega_ij e_ij``.
+        chi2 : float
+            ``sum_ij e_ij^T Omega_ij e_ij`` plus the priors' terms.
+        """
+        g = self.graph
+        e, J, ep, Jp = self._terms(poses)
+        OJ = g.information @ J  # (m, 3, 6)
+        M = np.swapaxes(J, 1, 2) @ OJ  # J^T Omega J, (m, 6, 6)
+        M = 0.5 * (M + np.swapaxes(M, 1, 2))
+        OJp = self._prior_info @ Jp
+        Mp = np.swapaxes(Jp, 1, 2) @ OJp
+        Mp = 0.5 * (Mp + np.swapaxes(Mp, 1, 2))
+        w = np.concatenate([M.ravel()[self._keep_e], Mp.ravel()[self._keep_p]])
+        data = np.bincount(self._slot, weights=w, minlength=self.nnz)
+        H = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.N, self.N))
+        ge = np.einsum("kab,ka->kb", OJ, e).ravel()  # J^T Omega e, (m, 6)
+        gp = np.einsum("kab,ka->kb", OJp, ep).ravel()
+        b = np.bincount(self._rows_b_e[self._keep_b_e], ge[self._keep_b_e], minlength=self.N)
+        b += np.bincount(self._rows_b_p[self._keep_b_p], gp[self._keep_b_p], minlength=self.N)
+        chi2 = float(
+            np.einsum("ka,kab,kb->", e, g.information, e)
+            + np.einsum("ka,kab,kb->", ep, self._prior_info, ep)
+        )
+        return H, b, chi2
+
+    def damped(self, H, lam):
+        """``H + lam I`` (Levenberg's damping), same pattern."""
+        data = H.data.copy()
+        data[self._diag_slot] += lam
+        return sp.csr_matrix((data, self._indices, self._indptr), shape=H.shape)
+
+    def update(self, poses, dx):
+        """``x <- x + dx`` on the free poses (lecture notes, "Algorithm" line 5), angles wrapped.
+
+        Parameters
+        ----------
+        poses : ndarray, shape (n, 3)
+        dx : ndarray, shape (N,)
+
+        Returns
+        -------
+        ndarray, shape (n, 3)
+        """
+        out = poses.copy()
+        out[self.free] += dx.reshape(-1, 3)
+        out[self.free, 2] = se2.wrap_angle(out[self.free, 2])
+        return out
+
+
+# ----------------------------------------------------------------------------- optimize
+@dataclass
+class OptimizeResult:
+    """What :func:`optimize` returns.
+
+    Attributes
+    ----------
+    poses : ndarray, shape (n, 3)
+        The best iterate (lowest objective) — never worse than any other iterate.
+    chi2 : float
+        Its objective: ``sum e^T Omega e`` over edges, plus the priors' terms.
+    chi2_history : list of float
+        Objective at the start and after every accepted step.
+    step_norms : list of float
+        ``max |dx|`` of every accepted step.
+    iterations : int
+        Accepted steps.
+    converged : bool
+    reason : str
+        Why the iteration stopped.
+    method, error : str
+    lambdas : list of float
+        LM: the damping used for each accepted step.
+    step_fractions : list of float
+        GN: the fraction of the Gauss–Newton step taken (1, or 1/2, 1/4, ... after halving).
+    linear_iterations : list of int
+        PCG iterations per solve (``linear_solver="pcg"``).
+    timings : dict
+        ``"assembly"``, ``"solve"`` and ``"evaluation"``: seconds per accepted step (a rejected
+        LM/backtracking trial is charged to the step that follows it); ``"setup"`` (pattern
+        and checks) and ``"total"``: seconds.
+    graph : PoseGraph
+        The input graph with ``poses``.
+    """
+
+    poses: np.ndarray
+    chi2: float
+    chi2_history: list
+    step_norms: list
+    iterations: int
+    converged: bool
+    reason: str
+    method: str
+    error: str
+    graph: PoseGraph
+    lambdas: list = field(default_factory=list)
+    step_fractions: list = field(default_factory=list)
+    linear_iterations: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+
+    def __repr__(self):
+        return (
+            f"OptimizeResult(method={self.method!r}, error={self.error!r}, chi2={self.chi2:.10g}, "
+            f"iterations={self.iterations}, converged={self.converged}, reason={self.reason!r})"
+        )
+
+
+def _initial(graph, initial):
+    x = _numeric(initial, "initial", float)
+    if x.shape != (graph.n, 3):
+        raise GraphError(f"initial must have shape ({graph.n}, 3); got {x.shape}")
+    bad = np.flatnonzero(~np.all(np.isfinite(x), axis=1))
+    if bad.size:
+        raise GraphError(
+            f"initial guess of vertex id {graph.ids[bad[0]]} is not finite: {x[bad[0]].tolist()} "
+            f"({bad.size} such poses); give every pose a finite initial guess"
+        )
+    return x.copy()
+
+
+METHODS = ("gn", "lm")
+
+
+def optimize(
+    graph,
+    initial=None,
+    *,
+    method="gn",
+    error="t2v",
+    fixed=None,
+    prior=None,
+    max_iterations=100,
+    tol=1e-10,
+    step_tol=1e-10,
+    linear_solver="cholesky",
+    backend="auto",
+    lambda_initial=1e-5,
+    max_backtracks=10,
+    verbose=False,
+):
+    """Minimize ``sum e_ij^T Omega_ij e_ij`` by Gauss–Newton or Levenberg–Marquardt.
+
+    Lecture notes, "Algorithm"::
+
+        while not converged:
+            H, b = build_linear_system(x)
+            dx = solve_sparse(H dx = -b)
+            x = x + dx
+
+    with two safeguards the notes leave out:
+
+    * **Gauss–Newton** (``method="gn"``): when a full step increases the objective, the step is
+      halved (up to ``max_backtracks`` times); when no fraction decreases it, the iteration stops
+      and returns the best iterate.  Where plain Gauss–Newton converges no step is ever halved,
+      so the iterates are the notes' (GTSAM's ``GaussNewtonOptimizer`` instead returns the worse
+      estimate).
+    * **Levenberg–Marquardt** (``method="lm"``): solves ``(H + lambda I) dx = -b``; ``lambda``
+      (first ``lambda_initial``) is divided by 10 after a step that decreases the objective and
+      multiplied by 10 after one that does not (the step is then retried without relinearizing)
+      — GTSAM's default rule.  Marquardt's ``lambda diag(H)`` scaling, tried here, stalled on the
+      ill-conditioned INTEL graph and needed 2-3x the iterations on CSAIL, where ``lambda I``
+      does not.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    initial : array_like, shape (n, 3), optional
+        Initial guess, default ``graph.poses``.
+    method : {"gn", "lm"}
+    error : {"t2v", "log"}
+        Residual definition (:func:`lagolib.graph.residuals`): ``"t2v"`` is the notes' and g2o's,
+        ``"log"`` GTSAM's.
+    fixed : sequence of int, optional
+        Vertex ids held at their initial value.  Default: the vertex with the smallest id, unless
+        ``prior`` is given (then none).
+    prior : Prior or sequence of Prior, optional
+    max_iterations : int
+        Accepted steps at most.
+    tol : float
+        Converged when an accepted step decreases the objective by less than ``tol`` times its
+        value (or a rejected one would change it by less).
+    step_tol : float
+        Converged when ``max |dx|`` of an accepted step is below this.
+    linear_solver : {"cholesky", "pcg"}
+        Sparse Cholesky (:class:`lagolib.linalg.SparseCholesky`) or block-Jacobi
+        preconditioned conjugate gradients (:func:`lagolib.linalg.pcg`, relative residual 1e-10).
+    backend : {"auto", "qdldl", "scipy"}
+        Cholesky backend.
+    lambda_initial : float
+        LM's first damping.
+    max_backtracks : int
+        GN's step halvings before giving up.
+    verbose : bool
+        Print one progress line per iteration.
+
+    Returns
+    -------
+    OptimizeResult
+
+    Raises
+    ------
+    GaugeError
+        A connected component has no fixed pose and no prior (``H`` would be singular).
+    GraphError
+        ``initial`` has the wrong shape or a non-finite pose; unknown vertex ids.
+    NotPositiveDefiniteError
+        ``H`` is numerically not positive definite although the gauge is fixed (extremely
+        ill-conditioned information; try ``method="lm"``).
+
+    Examples
+    --------
+    >>> import lagolib
+    >>> ex = lagolib.datasets.example("square_loop")
+    >>> res = lagolib.optimize(ex.graph)
+    >>> res.converged, res.iterations <= 10, res.chi2 < lagolib.chi2(ex.graph)
+    (True, True, True)
+    """
+    t_start = time.perf_counter()
+    if not isinstance(graph, PoseGraph):
+        raise TypeError(f"graph must be a PoseGraph; got {type(graph).__name__}")
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}; got {method!r}")
+    if error not in ERRORS:
+        raise ValueError(f"error must be one of {ERRORS}; got {error!r}")
+    if linear_solver not in ("cholesky", "pcg"):
+        raise ValueError(f"linear_solver must be 'cholesky' or 'pcg'; got {linear_solver!r}")
+    priors = _as_priors(prior)
+    if fixed is None:
+        fixed = () if priors else (int(np.min(graph.ids)),) if graph.n else ()
+    fixed = tuple(np.atleast_1d(np.asarray(fixed, dtype=object)).tolist())
+    check_gauge(graph, fixed, priors)
+    x = graph.poses.copy() if initial is None else _initial(graph, initial)
+    system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
+    timings = {"assembly": [], "solve": [], "evaluation": []}
+    t_setup = time.perf_counter() - t_start
+
+    factor = None
+    lam = float(lambda_initial)
+    lambdas, lin_iters, steps, fractions = [], [], [], []
+
+    def solve(H, rhs):
+        nonlocal factor
+        if linear_solver == "pcg":
+            out = pcg(H, rhs, preconditioner="block_jacobi", rtol=1e-10)
+            lin_iters.append(out.iterations)
+            return out.x
+        if factor is None:
+            factor = SparseCholesky(H, backend)
+        else:
+            factor.refactor(H)
+        return factor.solve(rhs)
+
+    t = time.perf_counter()
+    H, b, chi = system.assemble(x)
+    history = [chi]
+    t_asm = time.perf_counter() - t
+    t_sol = t_eval = 0.0
+    converged, reason = False, f"reached max_iterations={max_iterations}"
+    if verbose:
+        print(f"iter {0:3d}  chi2 {chi:.10g}")
+    it = 0
+    while it < max_iterations:
+        if system.N == 0 or chi == 0.0:
+            converged, reason = True, "nothing to optimize" if system.N == 0 else "zero error"
+            break
+        accepted = False
+        alpha = 1.0
+        while True:
+            t = time.perf_counter()
+            try:
+                dx = solve(system.damped(H, lam) if method == "lm" else H, -b)
+            except NotPositiveDefiniteError as exc:
+                if method == "lm" and lam < 1e10:
+                    lam *= 10.0
+                    continue
+                raise NotPositiveDefiniteError(
+                    f"iteration {it + 1}: H is not positive definite although every component "
+                    f"has a gauge ({exc}); the information matrices are too ill-conditioned for "
+                    "this start" + ("; try method='lm'" if method == "gn" else "")
+                ) from None
+            t_sol += time.perf_counter() - t
+            t = time.perf_counter()
+            step = alpha * dx
+            x_new = system.update(x, step)
+            chi_new = system.objective(x_new)
+            t_eval += time.perf_counter() - t
+            if chi_new < chi:
+                accepted = True
+                break
+            if chi_new - chi <= tol * chi:
+                break  # no decrease, but no increase worth a retry: converged
+            if method == "lm":
+                lam *= 10.0
+                if lam > 1e10:
+                    reason = "LM damping exceeded 1e10 without decreasing the error"
+                    break
+            else:
+                alpha *= 0.5
+                if alpha < 0.5**max_backtracks:
+                    reason = (
+                        f"the Gauss-Newton step increases the error even when halved "
+                        f"{max_backtracks} times; returned the best iterate (try method='lm')"
+                    )
+                    break
+        if not accepted:
+            if chi_new - chi <= tol * chi:
+                converged, reason = True, "converged: no step decreases the error by more than tol"
+            break
+        it += 1
+        decrease = (chi - chi_new) / chi
+        x, chi = x_new, chi_new
+        history.append(chi)
+        steps.append(float(np.max(np.abs(step))) if step.size else 0.0)
+        lambdas.append(lam if method == "lm" else 0.0)
+        fractions.append(alpha)
+        if method == "lm":
+            lam = max(lam / 10.0, 1e-12)
+        if verbose:
+            extra = f"  lambda {lambdas[-1]:.1e}" if method == "lm" else ""
+            extra += f"  alpha {alpha:g}" if alpha != 1.0 else ""
+            extra += f"  cg {lin_iters[-1]}" if lin_iters else ""
+            print(
+                f"iter {it:3d}  chi2 {chi:.10g}  decrease {decrease:.2e}  |dx| {steps[-1]:.2e}"
+                f"{extra}  assembly {t_asm * 1e3:.1f} ms  solve {t_sol * 1e3:.1f} ms"
+            )
+        timings["assembly"].append(t_asm)
+        timings["solve"].append(t_sol)
+        timings["evaluation"].append(t_eval)
+        t_sol = t_eval = 0.0
+        if decrease < tol:
+            converged, reason = True, f"converged: relative decrease {decrease:.2e} < tol"
+            break
+        if steps[-1] < step_tol:
+            converged, reason = True, f"converged: max |dx| {steps[-1]:.2e} < step_tol"
+            break
+        if it < max_iterations:
+            t = time.perf_counter()
+            H, b, _ = system.assemble(x)
+            t_asm = time.perf_counter() - t
+    timings["setup"] = t_setup
+    timings["total"] = time.perf_counter() - t_start
+    return OptimizeResult(
+        poses=x,
+        chi2=chi,
+        chi2_history=history,
+        step_norms=steps,
+        iterations=it,
+        converged=converged,
+        reason=reason,
+        method=method,
+        error=error,
+        graph=graph.with_poses(x),
+        lambdas=lambdas,
+        step_fractions=fractions,
+        linear_iterations=lin_iters,
+        timings=timings,
+    )

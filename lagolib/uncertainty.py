@@ -1,0 +1,266 @@
+"""Uncertainty of the estimate: marginal and relative covariances from the sparse ``H``.
+
+Lecture notes, "Uncertainty": ``H`` is the information matrix of the poses given the
+linearization point, and inverting it gives their (dense) covariance matrix, whose diagonal
+blocks are the uncertainties of the individual poses.  Here the inverse is never formed: ``H`` is
+factored once (:class:`lagolib.linalg.SparseCholesky`) and only the columns of ``H^-1`` that
+hold the requested diagonal blocks are solved for, a few dozen at a time.
+
+"Relative Uncertainty": the covariance of ``x_j`` relative to ``x_i`` is block ``(j, j)`` of the
+inverse of ``H`` with the rows and columns of ``x_i`` deleted — ``x_i`` fixed.  It is what a
+front end needs to decide whether a candidate loop closure is plausible
+(:func:`loop_closure_test`).
+
+Covariances are of the additive parametrization ``(x, y, theta)`` in the world frame — the one
+:func:`lagolib.optimize` updates.  ``frame="local"`` rotates them into each pose's own frame,
+``G^-1 Sigma G^-T`` with ``G = diag(R(theta), 1)``: the tangent-space convention of GTSAM's
+``Marginals``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2 as _chi2_dist
+
+from .errors import GraphError
+from .gauss_newton import (
+    LinearSystem,
+    _as_priors,
+    _initial,
+    _vertex_indices,
+    check_gauge,
+    edge_jacobians,
+)
+from .graph import describe_bad_information, first_bad_information
+from .linalg import SparseCholesky
+from .plotting import covariance_ellipse, plot_covariance_ellipses
+
+__all__ = [
+    "information_matrix",
+    "marginal_covariances",
+    "relative_covariances",
+    "loop_closure_test",
+    "GateResult",
+    "covariance_ellipse",
+    "plot_covariance_ellipses",
+]
+
+
+def _gauge(graph, fixed, prior):
+    priors = _as_priors(prior)
+    if fixed is None:
+        fixed = () if priors else (int(np.min(graph.ids)),)
+    fixed = tuple(np.atleast_1d(np.asarray(fixed, dtype=object)).tolist())
+    check_gauge(graph, fixed, priors)
+    return fixed, priors
+
+
+def information_matrix(graph, poses=None, *, fixed=None, prior=None, error="t2v"):
+    """``H`` of the free poses at ``poses`` (lecture notes, "Uncertainty").
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    poses : array_like, shape (n, 3), optional
+        Linearization point, default ``graph.poses``.
+    fixed, prior
+        The gauge, as in :func:`lagolib.optimize` (default: the smallest vertex id fixed).
+    error : {"t2v", "log"}
+
+    Returns
+    -------
+    H : scipy.sparse.csr_matrix, shape (3k, 3k)
+    free : ndarray of int, shape (k,)
+        Row index (into ``graph.poses``) of the pose of each 3x3 block of ``H``.
+    """
+    fixed, priors = _gauge(graph, fixed, prior)
+    x = graph.poses if poses is None else _initial(graph, poses)
+    system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
+    H, _, _ = system.assemble(x)
+    return H, system.free
+
+
+def _to_local(cov, theta):
+    c, s = np.cos(theta), np.sin(theta)
+    Ginv = np.zeros(theta.shape + (3, 3))
+    Ginv[..., 0, 0], Ginv[..., 0, 1], Ginv[..., 1, 0], Ginv[..., 1, 1] = c, s, -s, c
+    Ginv[..., 2, 2] = 1.0
+    return Ginv @ cov @ np.swapaxes(Ginv, -1, -2)
+
+
+def marginal_covariances(
+    graph,
+    vertices=None,
+    *,
+    poses=None,
+    fixed=None,
+    prior=None,
+    error="t2v",
+    frame="global",
+    backend="auto",
+    batch=64,
+):
+    """Marginal covariance ``(H^-1)_{kk}`` of selected poses, without a dense inverse.
+
+    ``H`` is factored once; for ``batch`` poses at a time the ``3 batch`` columns of ``H^-1``
+    through their blocks are solved for and the 3x3 diagonal blocks kept.  Memory:
+    ``O(nnz(L) + 3 N batch)``.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    vertices : sequence of int, optional
+        Vertex ids; default all.
+    poses : array_like, shape (n, 3), optional
+        Linearization point (usually the optimum), default ``graph.poses``.
+    fixed, prior
+        The gauge, as in :func:`lagolib.optimize`.  Fixed poses get zero covariance.
+    error : {"t2v", "log"}
+    frame : {"global", "local"}
+        World-frame ``(x, y, theta)`` covariance, or rotated into each pose's frame (GTSAM's
+        ``Marginals`` convention).
+    backend : {"auto", "qdldl", "scipy"}
+    batch : int
+        Poses per block of right-hand sides.
+
+    Returns
+    -------
+    ndarray, shape (k, 3, 3)
+
+    Examples
+    --------
+    >>> import lagolib
+    >>> from lagolib.uncertainty import marginal_covariances
+    >>> g = lagolib.datasets.example("square_loop").graph
+    >>> cov = marginal_covariances(g, [0, 40, 80])
+    >>> float(cov[0].max()), bool(cov[2, 0, 0] > cov[1, 0, 0] > 0)
+    (0.0, True)
+    """
+    if frame not in ("global", "local"):
+        raise ValueError(f"frame must be 'global' or 'local'; got {frame!r}")
+    x = graph.poses if poses is None else _initial(graph, poses)
+    idx = (
+        np.arange(graph.n)
+        if vertices is None
+        else _vertex_indices(graph, vertices, "marginal_covariances")
+    )
+    H, free = information_matrix(graph, x, fixed=fixed, prior=prior, error=error)
+    block_of = np.full(graph.n, -1, dtype=np.int64)
+    block_of[free] = np.arange(free.size)
+    out = np.zeros((idx.size, 3, 3))
+    wanted = np.flatnonzero(block_of[idx] >= 0)
+    if wanted.size:
+        factor = SparseCholesky(H, backend)
+        comp = np.arange(3)
+        for start in range(0, wanted.size, int(batch)):
+            sel = wanted[start : start + int(batch)]
+            rows = (3 * block_of[idx[sel]][:, None] + comp).ravel()  # (3q,)
+            E = np.zeros((H.shape[0], rows.size))
+            E[rows, np.arange(rows.size)] = 1.0
+            X = factor.solve(E)  # columns of H^-1
+            q = sel.size
+            blocks = X[rows].reshape(q, 3, q, 3)[np.arange(q), :, np.arange(q), :]
+            out[sel] = 0.5 * (blocks + np.swapaxes(blocks, 1, 2))
+    if frame == "local":
+        out = _to_local(out, x[idx, 2])
+    return out
+
+
+def relative_covariances(graph, i, vertices=None, *, poses=None, error="t2v", frame="global"):
+    """Covariance of poses relative to pose ``i`` (lecture notes, "Relative Uncertainty").
+
+    Construct the full ``H``, delete the rows and columns of ``x_i``, and take block ``(j, j)`` of
+    the inverse: the covariance of ``x_j`` when ``x_i`` is known exactly.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    i : int
+        Vertex id of the reference pose.
+    vertices : sequence of int, optional
+        Vertex ids ``j``; default all (``i`` itself gets zeros).
+    poses, error, frame
+        As in :func:`marginal_covariances`.
+
+    Returns
+    -------
+    ndarray, shape (k, 3, 3)
+    """
+    return marginal_covariances(
+        graph, vertices, poses=poses, fixed=[i], prior=None, error=error, frame=frame
+    )
+
+
+@dataclass(frozen=True)
+class GateResult:
+    """Outcome of :func:`loop_closure_test`.
+
+    Attributes
+    ----------
+    d2 : float
+        Squared Mahalanobis distance ``e^T S^-1 e`` of the candidate.
+    threshold : float
+        ``chi2.ppf(confidence, 3)``.
+    accept : bool
+        ``d2 <= threshold``.
+    innovation : ndarray, shape (3,)
+        ``e_ij`` of the candidate at the current estimate.
+    S : ndarray, shape (3, 3)
+        Its covariance ``B Sigma_rel B^T + Omega^-1``.
+    """
+
+    d2: float
+    threshold: float
+    accept: bool
+    innovation: np.ndarray
+    S: np.ndarray
+
+
+def loop_closure_test(
+    graph, i, j, measurement, information, *, poses=None, confidence=0.99, error="t2v"
+):
+    """Gate a candidate loop closure ``z_ij`` with the relative uncertainty of ``x_j`` given ``x_i``.
+
+    The candidate's error ``e = t2v(z^-1 X_i^-1 X_j)`` has, to first order, covariance
+    ``S = B_ij Sigma_j|i B_ij^T + Omega^-1`` where ``Sigma_j|i`` is the relative covariance
+    (lecture notes, "Relative Uncertainty": "useful to decide loop closures").  The candidate is
+    plausible when ``e^T S^-1 e`` is below the ``confidence`` quantile of a χ² with 3 degrees of
+    freedom.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+        The graph without the candidate.
+    i, j : int
+        Vertex ids.
+    measurement : array_like, shape (3,)
+        Candidate ``z_ij``.
+    information : array_like, shape (3, 3)
+        Its information matrix.
+    poses : array_like, shape (n, 3), optional
+        Current estimate, default ``graph.poses``.
+    confidence : float
+    error : {"t2v", "log"}
+
+    Returns
+    -------
+    GateResult
+    """
+    x = graph.poses if poses is None else _initial(graph, poses)
+    z = np.asarray(measurement, dtype=float)
+    omega = np.asarray(information, dtype=float)
+    if z.shape != (3,) or omega.shape != (3, 3):
+        raise GraphError("measurement must have shape (3,) and information shape (3, 3)")
+    if not np.all(np.isfinite(z)):
+        raise GraphError(f"candidate measurement is not finite: {z.tolist()}")
+    if first_bad_information(omega[None]) is not None:
+        raise GraphError(f"candidate loop closure {i} -> {j}: {describe_bad_information(omega)}")
+    ki, kj = _vertex_indices(graph, [i, j], "loop_closure_test")
+    (cov,) = relative_covariances(graph, i, [j], poses=x, error=error)
+    e, _, B = edge_jacobians(x[ki], x[kj], z, error=error)
+    S = B @ cov @ B.T + np.linalg.inv(omega)
+    d2 = float(e @ np.linalg.solve(S, e))
+    threshold = float(_chi2_dist.ppf(confidence, 3))
+    return GateResult(d2, threshold, d2 <= threshold, e, S)
