@@ -17,6 +17,7 @@ import time
 import tracemalloc
 
 import numpy as np
+from _timing import best_of  # benchmarks/ is on sys.path when run as a script
 
 import lagolib
 from lagolib import datasets, gauss_newton, linalg
@@ -24,13 +25,8 @@ from lagolib import datasets, gauss_newton, linalg
 SIGMAS = (1e-3, 1e-3, 1e-4)
 
 
-def best_of(fn, repeat=3):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
+def best_of3(fn):
+    return best_of(fn, repeat=3)
 
 
 def gtsam_problem(gtsam, graph, initial):
@@ -75,8 +71,8 @@ def main():
         t_gt, it_gt, chi_gt, result = min(runs, key=lambda r: r[0])
         per_gt = t_gt / it_gt
         lin = fg.linearize(result)
-        t_lin = best_of(lambda fg=fg, at=result: fg.linearize(at))
-        t_sol = best_of(lambda lin=lin: lin.optimize())
+        t_lin = best_of3(lambda fg=fg, at=result: fg.linearize(at))
+        t_sol = best_of3(lambda lin=lin: lin.optimize())
         print(
             f"{name:<10} {'gtsam GN':<14} {it_gt:>5} {chi_gt:>14.8f} {1e3 * per_gt:>8.1f} "
             f"{1e3 * t_lin:>9.1f} {1e3 * t_sol:>7.1f} {'':>6} {1.0:>6.2f}"
@@ -109,13 +105,13 @@ def main():
     print(f"\ncity10000 H: {H.shape[0]} x {H.shape[1]}, nnz {H.nnz}")
     for backend in linalg.available_backends():
         f = linalg.SparseCholesky(H, backend)
-        t_first = best_of(lambda backend=backend: linalg.SparseCholesky(H, backend).solve(b))
-        t_re = best_of(lambda f=f: f.refactor(H).solve(b))
+        t_first = best_of3(lambda backend=backend: linalg.SparseCholesky(H, backend).solve(b))
+        t_re = best_of3(lambda f=f: f.refactor(H).solve(b))
         print(
             f"  {backend:<6} factor+solve {1e3 * t_first:7.1f} ms, refactor+solve {1e3 * t_re:7.1f} ms"
         )
     out = linalg.pcg(H, -b, rtol=1e-10)
-    t_cg = best_of(lambda: linalg.pcg(H, -b, rtol=1e-10))
+    t_cg = best_of3(lambda: linalg.pcg(H, -b, rtol=1e-10))
     print(f"  pcg    block-Jacobi: {out.iterations} iterations, {1e3 * t_cg:.1f} ms")
 
 

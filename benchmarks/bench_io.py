@@ -8,20 +8,12 @@ Prints, for each file, the best of several reads for lagolib and for GTSAM's ``r
 
 from __future__ import annotations
 
-import time
 import tracemalloc
+
+from _timing import best_of  # benchmarks/ is on sys.path when run as a script
 
 import lagolib
 from lagolib import datasets
-
-
-def best_of(fn, repeat=5):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def main():

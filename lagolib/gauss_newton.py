@@ -36,7 +36,7 @@ import scipy.sparse as sp
 
 from . import se2
 from .errors import GaugeError, GraphError, NotPositiveDefiniteError
-from .graph import ERRORS, PoseGraph, _check_error, _numeric
+from .graph import ERRORS, PoseGraph, _check_error, _numeric, chi2
 from .linalg import SparseCholesky, pcg
 
 __all__ = [
@@ -47,6 +47,7 @@ __all__ = [
     "reduce_system",
     "LinearSystem",
     "check_gauge",
+    "resolve_gauge",
     "optimize",
     "OptimizeResult",
 ]
@@ -226,6 +227,19 @@ def _vertex_indices(graph, vertices, what):
             )
         out.append(sorter[k])
     return np.asarray(out, dtype=np.int64)
+
+
+def resolve_gauge(graph, fixed=None, prior=None):
+    """The gauge :func:`optimize` uses: ``(fixed ids, priors)``, checked by :func:`check_gauge`.
+
+    ``fixed=None`` means: the vertex with the smallest id when no prior is given, else none.
+    """
+    priors = _as_priors(prior)
+    if fixed is None:
+        fixed = () if priors or graph.n == 0 else (int(np.min(graph.ids)),)
+    fixed = tuple(np.atleast_1d(np.asarray(fixed, dtype=object)).tolist())
+    check_gauge(graph, fixed, priors)
+    return fixed, priors
 
 
 def check_gauge(graph, fixed=(), prior=None):
@@ -451,15 +465,12 @@ class LinearSystem:
         return e, np.concatenate([A, B], axis=2), ep, Jp
 
     def objective(self, poses):
-        """χ² of the edges plus the priors' terms at ``poses`` (shape (n, 3))."""
-        g = self.graph
-        e = edge_jacobians(
-            poses[g.edges[:, 0]], poses[g.edges[:, 1]], g.measurements, error=self.error
-        )[0]
-        ep = prior_jacobian(poses[self._prior_idx], self._prior_mean, error=self.error)[0]
-        return float(
-            np.einsum("ka,kab,kb->", e, g.information, e)
-            + np.einsum("ka,kab,kb->", ep, self._prior_info, ep)
+        """χ² of the edges plus the priors' terms at ``poses`` (shape (n, 3)); no Jacobians."""
+        ep = se2.between(self._prior_mean, poses[self._prior_idx])
+        if self.error == "log":
+            ep = se2.log(ep)
+        return chi2(self.graph, poses, error=self.error) + float(
+            np.einsum("ka,kab,kb->", ep, self._prior_info, ep)
         )
 
     def assemble(self, poses):
@@ -495,11 +506,11 @@ class LinearSystem:
         gp = np.einsum("kab,ka->kb", OJp, ep).ravel()
         b = np.bincount(self._rows_b_e[self._keep_b_e], ge[self._keep_b_e], minlength=self.N)
         b += np.bincount(self._rows_b_p[self._keep_b_p], gp[self._keep_b_p], minlength=self.N)
-        chi2 = float(
+        objective = float(
             np.einsum("ka,kab,kb->", e, g.information, e)
             + np.einsum("ka,kab,kb->", ep, self._prior_info, ep)
         )
-        return H, b, chi2
+        return H, b, objective
 
     def damped(self, H, lam):
         """``H + lam I`` (Levenberg's damping), same pattern."""
@@ -701,11 +712,7 @@ def optimize(
         raise ValueError(f"error must be one of {ERRORS}; got {error!r}")
     if linear_solver not in ("cholesky", "pcg"):
         raise ValueError(f"linear_solver must be 'cholesky' or 'pcg'; got {linear_solver!r}")
-    priors = _as_priors(prior)
-    if fixed is None:
-        fixed = () if priors else (int(np.min(graph.ids)),) if graph.n else ()
-    fixed = tuple(np.atleast_1d(np.asarray(fixed, dtype=object)).tolist())
-    check_gauge(graph, fixed, priors)
+    fixed, priors = resolve_gauge(graph, fixed, prior)
     x = graph.poses.copy() if initial is None else _initial(graph, initial)
     system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
     timings = {"assembly": [], "solve": [], "evaluation": []}

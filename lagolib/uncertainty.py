@@ -27,11 +27,10 @@ from scipy.stats import chi2 as _chi2_dist
 from .errors import GraphError
 from .gauss_newton import (
     LinearSystem,
-    _as_priors,
     _initial,
     _vertex_indices,
-    check_gauge,
     edge_jacobians,
+    resolve_gauge,
 )
 from .graph import describe_bad_information, first_bad_information
 from .linalg import SparseCholesky
@@ -46,15 +45,6 @@ __all__ = [
     "covariance_ellipse",
     "plot_covariance_ellipses",
 ]
-
-
-def _gauge(graph, fixed, prior):
-    priors = _as_priors(prior)
-    if fixed is None:
-        fixed = () if priors else (int(np.min(graph.ids)),)
-    fixed = tuple(np.atleast_1d(np.asarray(fixed, dtype=object)).tolist())
-    check_gauge(graph, fixed, priors)
-    return fixed, priors
 
 
 def information_matrix(graph, poses=None, *, fixed=None, prior=None, error="t2v"):
@@ -75,7 +65,7 @@ def information_matrix(graph, poses=None, *, fixed=None, prior=None, error="t2v"
     free : ndarray of int, shape (k,)
         Row index (into ``graph.poses``) of the pose of each 3x3 block of ``H``.
     """
-    fixed, priors = _gauge(graph, fixed, prior)
+    fixed, priors = resolve_gauge(graph, fixed, prior)
     x = graph.poses if poses is None else _initial(graph, poses)
     system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
     H, _, _ = system.assemble(x)
