@@ -36,7 +36,7 @@ import scipy.sparse as sp
 
 from . import se2
 from .errors import GaugeError, GraphError, NotPositiveDefiniteError
-from .graph import ERRORS, PoseGraph, _check_error, _numeric, chi2
+from .graph import ERRORS, PoseGraph, _check_error, _numeric, chi2, edge_errors
 from .linalg import SparseCholesky, pcg
 
 __all__ = [
@@ -96,16 +96,11 @@ def edge_jacobians(p_i, p_j, z, *, error="t2v"):
     p_i, p_j, z = np.broadcast_arrays(
         se2._as_poses(p_i, "p_i"), se2._as_poses(p_j, "p_j"), se2._as_poses(z, "z")
     )
+    e = edge_errors(p_i, p_j, z)  # the t2v error, also for "log" (its argument)
     a = p_i[..., 2] + z[..., 2]
     c, s = np.cos(a), np.sin(a)
-    cz, sz = np.cos(z[..., 2]), np.sin(z[..., 2])
     dx = p_j[..., 0] - p_i[..., 0]
     dy = p_j[..., 1] - p_i[..., 1]
-    e = np.empty(p_i.shape)
-    # R_iz^T dt - R_z^T t_z  ==  R_z^T (R_i^T (t_j - t_i) - t_z)
-    e[..., 0] = c * dx + s * dy - (cz * z[..., 0] + sz * z[..., 1])
-    e[..., 1] = -s * dx + c * dy - (-sz * z[..., 0] + cz * z[..., 1])
-    e[..., 2] = se2.wrap_angle(p_j[..., 2] - p_i[..., 2] - z[..., 2])
     B = np.zeros(p_i.shape + (3,))
     B[..., 0, 0], B[..., 0, 1] = c, s
     B[..., 1, 0], B[..., 1, 1] = -s, c

@@ -450,17 +450,36 @@ def residuals(graph, poses=None, *, error="t2v"):
     -------
     ndarray, shape (m, 3)
     """
-    _check_error(error)
     p_i, p_j = _edge_arrays(graph, poses)
-    z = graph.measurements
+    return edge_errors(p_i, p_j, graph.measurements, error=error)
+
+
+def edge_errors(p_i, p_j, z, *, error="t2v"):
+    """``e_ij`` of measurements ``z`` between poses ``p_i`` and ``p_j`` — see :func:`residuals`.
+
+    The one place lagolib evaluates the error; :func:`residuals` applies it to a graph's edges,
+    :func:`lagolib.gauss_newton.edge_jacobians` differentiates it.
+
+    Parameters
+    ----------
+    p_i, p_j, z : array_like, shape (..., 3)
+        Broadcast against each other.
+    error : {"t2v", "log"}
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+    """
+    _check_error(error)
+    z = se2._as_poses(z, "z")
     rel = se2.between(p_i, p_j)  # X_i^-1 X_j, Carlone et al. 2011 eq. (1)
-    d = rel[:, :2] - z[:, :2]
-    c, s = np.cos(z[:, 2]), np.sin(z[:, 2])
+    d = rel[..., :2] - z[..., :2]
+    c, s = np.cos(z[..., 2]), np.sin(z[..., 2])
     e = np.stack(
         [
-            c * d[:, 0] + s * d[:, 1],
-            -s * d[:, 0] + c * d[:, 1],
-            se2.wrap_angle(rel[:, 2] - z[:, 2]),
+            c * d[..., 0] + s * d[..., 1],
+            -s * d[..., 0] + c * d[..., 1],
+            se2.wrap_angle(rel[..., 2] - z[..., 2]),
         ],
         axis=-1,
     )
