@@ -2,8 +2,8 @@
 
 Layers (each imports only from the ones before it)::
 
-    errors, se2 -> graph -> io, simulate, datasets -> linalg -> gauss_newton
-    -> plotting -> uncertainty;   symbolic (sympy only)
+    errors, se2 -> graph -> io, simulate -> datasets -> topology -> linalg -> estimation
+    -> gauss_newton, lago -> plotting -> uncertainty;   symbolic (sympy only)
 
 Public API
 ----------
@@ -19,20 +19,39 @@ simulate
 datasets
     Public benchmarks by name (``LAGOLIB_DATA`` mirror or checksummed download) and the shipped
     examples.
+topology
+    Incidence matrices, spanning trees, chords, fundamental circuits, cycle basis matrix.
 linalg
     Sparse Cholesky with pluggable backends, preconditioned conjugate gradients.
 gauss_newton, optimize, Prior
     The lecture notes' least squares: Jacobians, ``H`` and ``b`` (loop and vectorized),
     Gauss–Newton and Levenberg–Marquardt, gauge by prior or fixed poses.
+estimation
+    The BLUE in information form, first-order covariance propagation.
+lago, LagoResult
+    Carlone et al.'s linear approximation: regularization and the three phases.
 uncertainty
     Marginal and relative covariances from the sparse ``H``, loop-closure gating.
 symbolic
     sympy derivations of the error and its Jacobians.
 plotting
-    ``plot_graph``, ``plot_trajectories``, ``plot_poses``, ``plot_covariance_ellipses``.
+    ``plot_graph``, ``plot_spanning_tree``, ``plot_trajectories``, ``plot_poses``,
+    ``plot_covariance_ellipses``.
 """
 
-from . import datasets, gauss_newton, linalg, plotting, se2, simulate, symbolic, uncertainty
+from . import (
+    datasets,
+    estimation,
+    gauss_newton,
+    lago,
+    linalg,
+    plotting,
+    se2,
+    simulate,
+    symbolic,
+    topology,
+    uncertainty,
+)
 from .errors import (
     DatasetError,
     GaugeError,
@@ -46,7 +65,14 @@ from .errors import (
 from .gauss_newton import OptimizeResult, Prior, optimize
 from .graph import PoseGraph, chi2, residuals
 from .io import read, read_g2o, read_poses, read_toro, write, write_g2o, write_poses, write_toro
-from .plotting import plot_covariance_ellipses, plot_graph, plot_poses, plot_trajectories
+from .lago import LagoResult
+from .plotting import (
+    plot_covariance_ellipses,
+    plot_graph,
+    plot_poses,
+    plot_spanning_tree,
+    plot_trajectories,
+)
 
 __version__ = "0.1.0"
 
@@ -57,6 +83,10 @@ __all__ = [
     "plotting",
     "linalg",
     "gauss_newton",
+    "topology",
+    "estimation",
+    "lago",
+    "LagoResult",
     "uncertainty",
     "symbolic",
     "PoseGraph",
@@ -71,6 +101,7 @@ __all__ = [
     "read_poses",
     "write_poses",
     "plot_graph",
+    "plot_spanning_tree",
     "plot_trajectories",
     "plot_poses",
     "plot_covariance_ellipses",

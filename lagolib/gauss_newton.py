@@ -36,7 +36,7 @@ import scipy.sparse as sp
 
 from . import se2
 from .errors import GaugeError, GraphError, NotPositiveDefiniteError
-from .graph import ERRORS, PoseGraph, _check_error, _numeric, chi2, edge_errors
+from .graph import ERRORS, PoseGraph, _check_error, _numeric, chi2, edge_errors, vertex_rows
 from .linalg import SparseCholesky, pcg
 
 __all__ = [
@@ -203,27 +203,6 @@ def _as_priors(prior):
     return priors
 
 
-def _vertex_indices(graph, vertices, what):
-    """Row indices of vertex ids, with an error naming an unknown id."""
-    ids = np.asarray(graph.ids)
-    vertices = np.atleast_1d(np.asarray(vertices, dtype=object))
-    out = []
-    if vertices.size == 0:
-        return np.zeros(0, dtype=np.int64)
-    sorter = np.argsort(ids, kind="stable")
-    for v in vertices:
-        if isinstance(v, bool | np.bool_) or not isinstance(v, int | np.integer):
-            raise GraphError(f"{what}: vertex ids are integers; got {v!r}")
-        k = np.searchsorted(ids, v, sorter=sorter)
-        if k >= len(ids) or ids[sorter[k]] != v:
-            raise GraphError(
-                f"{what}: vertex id {v} is not in the graph (ids run from {ids.min()} to "
-                f"{ids.max()})"
-            )
-        out.append(sorter[k])
-    return np.asarray(out, dtype=np.int64)
-
-
 def resolve_gauge(graph, fixed=None, prior=None):
     """The gauge :func:`optimize` uses: ``(fixed ids, priors)``, checked by :func:`check_gauge`.
 
@@ -255,8 +234,8 @@ def check_gauge(graph, fixed=(), prior=None):
     GaugeError
         Naming the first component without a gauge and what to pass.
     """
-    fixed_idx = _vertex_indices(graph, fixed, "fixed")
-    prior_idx = _vertex_indices(graph, [p.vertex for p in _as_priors(prior)], "prior")
+    fixed_idx = vertex_rows(graph, fixed, "fixed")
+    prior_idx = vertex_rows(graph, [p.vertex for p in _as_priors(prior)], "prior")
     count, labels = graph.components()
     anchored = np.zeros(count, dtype=bool)
     anchored[labels[np.concatenate([fixed_idx, prior_idx])]] = True
@@ -328,7 +307,7 @@ def build_linear_system_loop(graph, poses=None, *, prior=None, error="t2v"):
         add(j, i, B.T @ omega @ A)
         add(j, j, B.T @ omega @ B)
     for p in _as_priors(prior):
-        (k,) = _vertex_indices(graph, [p.vertex], "prior")
+        (k,) = vertex_rows(graph, [p.vertex], "prior")
         omega = np.asarray(p.information)
         e, J = prior_jacobian(x[k], p.mean, error=error)
         b[k] += J.T @ omega @ e
@@ -366,7 +345,7 @@ def reduce_system(graph, H, b, fixed):
         ``k = n - len(fixed)``, free poses in row order of the graph.
     """
     keep = np.ones(graph.n, dtype=bool)
-    keep[_vertex_indices(graph, fixed, "fixed")] = False
+    keep[vertex_rows(graph, fixed, "fixed")] = False
     rows = (3 * np.flatnonzero(keep)[:, None] + np.arange(3)).ravel()
     H = sp.csr_matrix(H)
     return H[rows][:, rows], np.asarray(b)[rows]
@@ -407,7 +386,7 @@ class LinearSystem:
         self.graph, self.error = graph, error
         self.priors = _as_priors(prior)
         n = graph.n
-        fixed_idx = _vertex_indices(graph, fixed, "fixed")
+        fixed_idx = vertex_rows(graph, fixed, "fixed")
         is_free = np.ones(n, dtype=bool)
         is_free[fixed_idx] = False
         self.fixed = np.flatnonzero(~is_free)
@@ -421,7 +400,7 @@ class LinearSystem:
         # rows of the 6 unknowns [x_i; x_j] of every edge in H, -1 where the pose is fixed
         blk = red[np.repeat(e, 3, axis=1)]
         rows6 = np.where(blk >= 0, 3 * blk + np.tile(comp, 2), -1)  # (m, 6)
-        self._prior_idx = _vertex_indices(graph, [p.vertex for p in self.priors], "prior")
+        self._prior_idx = vertex_rows(graph, [p.vertex for p in self.priors], "prior")
         self._prior_mean = np.array([p.mean for p in self.priors], dtype=float).reshape(-1, 3)
         self._prior_info = np.array([p.information for p in self.priors], float).reshape(-1, 3, 3)
         pblk = red[self._prior_idx]

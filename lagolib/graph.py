@@ -27,7 +27,7 @@ from scipy.sparse.csgraph import connected_components
 from . import se2
 from .errors import GraphError
 
-__all__ = ["PoseGraph", "residuals", "chi2"]
+__all__ = ["PoseGraph", "residuals", "chi2", "vertex_rows"]
 
 
 def _numeric(value, name, dtype):
@@ -511,3 +511,42 @@ def chi2(graph, poses=None, *, per_edge=False, error="t2v"):
     e = residuals(graph, poses, error=error)
     terms = np.einsum("ka,kab,kb->k", e, graph.information, e)
     return terms if per_edge else float(terms.sum())
+
+
+def vertex_rows(graph, vertices, what="vertex"):
+    """Row indices (into ``graph.poses``) of vertex ids.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    vertices : int or sequence of int
+        Vertex ids, as in the file the graph came from.
+    what : str
+        Who is asking; it starts the error message.
+
+    Returns
+    -------
+    ndarray of int, shape (k,)
+
+    Raises
+    ------
+    GraphError
+        For an id that is not an integer or not in the graph (the message names it).
+    """
+    ids = np.asarray(graph.ids)
+    vertices = np.atleast_1d(np.asarray(vertices, dtype=object))
+    out = []
+    if vertices.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    sorter = np.argsort(ids, kind="stable")
+    for v in vertices:
+        if isinstance(v, bool | np.bool_) or not isinstance(v, int | np.integer):
+            raise GraphError(f"{what}: vertex ids are integers; got {v!r}")
+        k = np.searchsorted(ids, v, sorter=sorter)
+        if k >= len(ids) or ids[sorter[k]] != v:
+            raise GraphError(
+                f"{what}: vertex id {v} is not in the graph (ids run from {ids.min()} to "
+                f"{ids.max()})"
+            )
+        out.append(sorter[k])
+    return np.asarray(out, dtype=np.int64)

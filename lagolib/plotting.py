@@ -10,6 +10,7 @@ import numpy as np
 
 __all__ = [
     "plot_graph",
+    "plot_spanning_tree",
     "plot_trajectories",
     "plot_poses",
     "covariance_ellipse",
@@ -69,6 +70,81 @@ def plot_graph(
     ax.add_collection(LineCollection(_segments(poses, graph.edges[~odo]), **style))
     if vertices:
         ax.plot(poses[:, 0], poses[:, 1], ".", color="k", markersize=2)
+    ax.autoscale_view()
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="best", fontsize="small")
+    if title:
+        ax.set_title(title)
+    return ax
+
+
+def plot_spanning_tree(
+    graph, tree, poses=None, ax=None, *, highlight=None, labels=False, title=None
+):
+    """Draw a spanning tree and its chords (Carlone et al. 2011, §IV-E).
+
+    Tree edges solid, chords dashed; ``highlight`` edges (e.g. a fundamental circuit) drawn thick.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    tree : lagolib.topology.SpanningTree
+    poses : array_like, shape (n, 3), optional
+        Where to draw the vertices; default ``graph.poses``.
+    ax : matplotlib.axes.Axes, optional
+    highlight : array_like of int, optional
+        Edge indices to emphasize.
+    labels : bool
+        Write vertex rows at the vertices and edge indices at the edge midpoints (small graphs).
+    title : str, optional
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    from matplotlib.collections import LineCollection
+
+    ax = _axes(ax)
+    poses = graph.poses if poses is None else np.asarray(poses, dtype=float)
+    t = np.asarray(tree.in_tree, dtype=bool)
+    ax.add_collection(
+        LineCollection(
+            _segments(poses, graph.edges[t]),
+            colors="tab:blue",
+            linewidths=1.2,
+            label=f"{tree.kind} tree ({int(t.sum())} edges)",
+        )
+    )
+    ax.add_collection(
+        LineCollection(
+            _segments(poses, graph.edges[~t]),
+            colors="tab:orange",
+            linewidths=1.0,
+            linestyles="--",
+            label=f"chords ({int((~t).sum())})",
+        )
+    )
+    if highlight is not None and len(highlight):
+        h = np.asarray(highlight, dtype=np.int64)
+        ax.add_collection(
+            LineCollection(
+                _segments(poses, graph.edges[h]),
+                colors="tab:red",
+                linewidths=3.0,
+                alpha=0.6,
+                label=f"highlighted ({h.size})",
+            )
+        )
+    ax.plot(poses[:, 0], poses[:, 1], "o", color="k", markersize=3 if labels else 1.5)
+    ax.plot(*poses[tree.root, :2], "s", color="tab:green", markersize=8, label="root (anchor)")
+    if labels:
+        for v, (x, y) in enumerate(poses[:, :2]):
+            ax.annotate(str(v), (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
+        mid = 0.5 * (poses[graph.edges[:, 0], :2] + poses[graph.edges[:, 1], :2])
+        for k, (x, y) in enumerate(mid):
+            ax.annotate(f"e{k}", (x, y), fontsize=7, color="tab:gray", ha="center")
     ax.autoscale_view()
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")

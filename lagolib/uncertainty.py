@@ -28,11 +28,10 @@ from .errors import GraphError
 from .gauss_newton import (
     LinearSystem,
     _initial,
-    _vertex_indices,
     edge_jacobians,
     resolve_gauge,
 )
-from .graph import describe_bad_information, first_bad_information
+from .graph import describe_bad_information, first_bad_information, vertex_rows
 from .linalg import SparseCholesky
 from .plotting import covariance_ellipse, plot_covariance_ellipses
 
@@ -134,7 +133,7 @@ def marginal_covariances(
     idx = (
         np.arange(graph.n)
         if vertices is None
-        else _vertex_indices(graph, vertices, "marginal_covariances")
+        else vertex_rows(graph, vertices, "marginal_covariances")
     )
     H, free = information_matrix(graph, x, fixed=fixed, prior=prior, error=error)
     block_of = np.full(graph.n, -1, dtype=np.int64)
@@ -247,7 +246,7 @@ def loop_closure_test(
         raise GraphError(f"candidate measurement is not finite: {z.tolist()}")
     if first_bad_information(omega[None]) is not None:
         raise GraphError(f"candidate loop closure {i} -> {j}: {describe_bad_information(omega)}")
-    ki, kj = _vertex_indices(graph, [i, j], "loop_closure_test")
+    ki, kj = vertex_rows(graph, [i, j], "loop_closure_test")
     (cov,) = relative_covariances(graph, i, [j], poses=x, error=error)
     e, _, B = edge_jacobians(x[ki], x[kj], z, error=error)
     S = B @ cov @ B.T + np.linalg.inv(omega)

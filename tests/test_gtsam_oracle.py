@@ -111,3 +111,54 @@ def test_m3500_optimum_of_the_lecture_notes_error(benchmark):
     # Cholesky backends and PCG agree
     scipy_res = lagolib.optimize(graph, graph.odometry_guess(), backend="scipy")
     assert scipy_res.chi2 == pytest.approx(t2v.chi2, rel=1e-10)
+
+
+# --------------------------------------------------------------------------- LAGO
+def gtsam_lago_graph(graph):
+    """Between factors with the (diagonal) information of each edge and a prior at the origin.
+
+    GTSAM's LAGO anchors the first pose through the prior and refuses non-diagonal noise.
+    """
+    fg = gtsam.NonlinearFactorGraph()
+    ids = [int(i) for i in graph.ids]
+    for k, (i, j) in enumerate(graph.edges):
+        noise = gtsam.noiseModel.Diagonal.Precisions(np.diag(graph.information[k]).copy())
+        z = gtsam.Pose2(*graph.measurements[k])
+        fg.add(gtsam.BetweenFactorPose2(ids[i], ids[j], z, noise))
+    prior_noise = gtsam.noiseModel.Diagonal.Sigmas(np.full(3, 1e-8))
+    fg.add(gtsam.PriorFactorPose2(ids[0], gtsam.Pose2(0.0, 0.0, 0.0), prior_noise))
+    return fg, ids
+
+
+def _lago_cases():
+    sim = lagolib.simulate.loop_world(
+        laps=6, poses_per_lap=32, closure_probability=0.6, sigma_theta=0.03, rng=5
+    )
+    return [("loop_world", lambda _: sim.graph), ("m3500", None), ("city10000", None)]
+
+
+@pytest.mark.parametrize("name,make", _lago_cases())
+def test_lago_phase1_equals_gtsam_initialize_orientations(benchmark, name, make):
+    graph = make(None) if make else lagolib.read(benchmark(name))
+    fg, ids = gtsam_lago_graph(graph)
+    expected = gtsam.lago.initializeOrientations(fg, True)
+    res = lagolib.lago.lago(graph, "odometric")
+    theirs = np.array([expected.at(i)[0] for i in ids])
+    # unwrapped on both sides: the regularized orientations, anchor 0
+    np.testing.assert_allclose(res.theta_hat, theirs, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["m3500", "city10000"])
+def test_lago_poses_agree_with_gtsam_initialize(benchmark, name):
+    """Isotropic position noise, where GTSAM's phase 3 (local sigmas used in the global frame)
+    solves the same linear problem; the remaining difference is round-off in a long chain."""
+    graph = lagolib.read(benchmark(name))
+    fg, ids = gtsam_lago_graph(graph)
+    values = gtsam.lago.initialize(fg, True)
+    theirs = np.array(
+        [[values.atPose2(i).x(), values.atPose2(i).y(), values.atPose2(i).theta()] for i in ids]
+    )
+    res = lagolib.lago.lago(graph)
+    np.testing.assert_allclose(res.poses[:, :2], theirs[:, :2], atol=1e-5)
+    assert np.abs(lagolib.se2.wrap_angle(res.poses[:, 2] - theirs[:, 2])).max() < 1e-6
+    assert lagolib.chi2(graph, res.poses) == pytest.approx(lagolib.chi2(graph, theirs), rel=1e-8)

@@ -50,3 +50,17 @@ def test_plot_trajectories_and_poses():
     np.testing.assert_allclose(ax.lines[1].get_xydata(), ex.truth[:, :2])
     ax = lagolib.plot_poses(ex.truth[:3], labels=["a", "b", "c"])
     assert [t.get_text() for t in ax.texts] == ["a", "b", "c"]
+
+
+def test_plot_spanning_tree_draws_tree_chords_and_a_circuit():
+    ex = lagolib.datasets.example("grid100")
+    tree = lagolib.topology.bfs_tree(ex.graph)
+    circuit, _ = lagolib.topology.fundamental_circuit(ex.graph, tree, tree.chords[0])
+    ax = lagolib.plot_spanning_tree(ex.graph, tree, highlight=circuit, labels=True, title="t")
+    tr, ch, hi = [c for c in ax.collections if isinstance(c, LineCollection)]
+    assert len(tr.get_segments()) == ex.graph.n - 1
+    assert len(ch.get_segments()) == tree.d
+    assert len(hi.get_segments()) == circuit.size
+    assert ch.get_linestyle()[0][1] is not None  # chords dashed
+    np.testing.assert_allclose(ax.lines[1].get_xydata()[0], ex.graph.poses[tree.root, :2])
+    assert len(ax.texts) == ex.graph.n + ex.graph.m

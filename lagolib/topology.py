@@ -1,0 +1,530 @@
+"""Graph theory of the pose graph: incidence matrices, spanning trees, chords, cycle bases.
+
+Notation of Carlone, Aragues, Castellanos, Bona, "A Linear Approximation for Graph-based SLAM",
+RSS 2011, §II–IV.  The paper has ``n + 1`` nodes ``v_0 … v_n`` and ``m`` edges; a
+:class:`~lagolib.graph.PoseGraph` has ``graph.n`` vertices, so **the paper's n is ``graph.n - 1``**.
+
+- the incidence matrix 𝒜, shape (n+1, m): the column of edge ``(i, j)`` has −1 in row ``i``
+  (tail) and +1 in row ``j`` (head);
+- the reduced incidence matrix ``A`` (eq. 6): 𝒜 without the row of the anchor node;
+- ``A2 = A ⊗ I2`` for positions stacked as ``rho = [x_1, y_1, x_2, y_2, …]`` (eq. 5);
+- a spanning tree ``T`` (``n`` edges), its chords (the other ``m - n`` edges), the fundamental
+  circuit of each chord (Def. 1) and the cycle basis matrix 𝒞 = [I_d ℬ] (eq. 19), ``d = m - n``
+  (Cor. 1).
+
+Rows are the graph's vertex rows (``graph.poses`` order) and columns the graph's edge order, except
+where a docstring says otherwise.
+
+References
+----------
+.. [1] L. Carlone, R. Aragues, J. A. Castellanos, B. Bona, "A Linear Approximation for
+   Graph-based Simultaneous Localization and Mapping", Robotics: Science and Systems, 2011.
+.. [2] W. Chen, *Graph Theory and Its Engineering Applications*, 1997 (fundamental circuits).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import breadth_first_order
+
+from .errors import GraphError
+from .graph import vertex_rows
+
+__all__ = [
+    "incidence_matrix",
+    "reduced_incidence_matrix",
+    "position_incidence_matrix",
+    "SpanningTree",
+    "spanning_tree",
+    "odometric_tree",
+    "bfs_tree",
+    "fundamental_circuit",
+    "CycleBasis",
+    "cycle_basis",
+    "cyclomatic_number",
+]
+
+TREES = ("odometric", "bfs")
+
+
+def incidence_matrix(graph):
+    """The incidence matrix 𝒜 of the directed pose graph (Carlone et al. 2011, §II).
+
+    Parameters
+    ----------
+    graph : PoseGraph
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (graph.n, graph.m)
+        Column ``k`` of edge ``(i, j)``: −1 in row ``i`` (tail), +1 in row ``j`` (head).
+
+    Examples
+    --------
+    A triangle 0 → 1 → 2 and the chord 0 → 2:
+
+    >>> import numpy as np
+    >>> from lagolib import PoseGraph
+    >>> g = PoseGraph(np.zeros((3, 3)), [(0, 1), (1, 2), (0, 2)], np.zeros((3, 3)),
+    ...               np.tile(np.eye(3), (3, 1, 1)))
+    >>> incidence_matrix(g).toarray().astype(int)
+    array([[-1,  0, -1],
+           [ 1, -1,  0],
+           [ 0,  1,  1]])
+    """
+    e, m = graph.edges, graph.m
+    rows = np.concatenate([e[:, 0], e[:, 1]])
+    cols = np.concatenate([np.arange(m), np.arange(m)])
+    vals = np.concatenate([-np.ones(m), np.ones(m)])
+    # a self-loop (i, i) would sum to a zero column, which is what the definition gives
+    return sp.csr_matrix((vals, (rows, cols)), shape=(graph.n, m))
+
+
+def _anchor_row(graph, anchor):
+    if graph.n == 0:
+        raise GraphError("the graph has no vertices")
+    if anchor is None:
+        return int(np.argmin(graph.ids))
+    (row,) = vertex_rows(graph, [anchor], "anchor")
+    return int(row)
+
+
+def reduced_incidence_matrix(graph, anchor=None):
+    """The reduced incidence matrix ``A``: 𝒜 without the anchor's row (Carlone et al. 2011, eq. 6).
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    anchor : int, optional
+        Vertex id whose pose is known (the reference frame, ``p_0 = 0``); default: the smallest id.
+
+    Returns
+    -------
+    A : scipy.sparse.csr_matrix, shape (graph.n - 1, graph.m)
+        Rows are the graph's vertex rows with the anchor's row deleted, in order.
+
+    Notes
+    -----
+    For a connected graph 𝒜 has rank ``graph.n - 1`` and ``A`` has full row rank (Prop. 1), so
+    ``A P_delta^-1 A^T`` is positive definite.
+    """
+    row = _anchor_row(graph, anchor)
+    keep = np.delete(np.arange(graph.n), row)
+    return incidence_matrix(graph)[keep]
+
+
+def position_incidence_matrix(A):
+    """``A2 = A ⊗ I2``, the incidence matrix acting on stacked positions (Carlone et al. 2011, eq. 5).
+
+    Parameters
+    ----------
+    A : scipy.sparse matrix, shape (r, m)
+        An incidence matrix, full (𝒜) or reduced (``A``).
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (2 r, 2 m)
+        With ``rho = [x_1, y_1, x_2, y_2, …]`` (rows of ``A`` in order) and relative positions
+        stacked the same way, ``A2.T @ rho`` is ``[x_j - x_i, y_j - y_i]`` for each edge ``(i, j)``.
+
+    Examples
+    --------
+    >>> import scipy.sparse as sp
+    >>> A = sp.csr_matrix([[-1.0], [1.0]])   # one edge 0 -> 1
+    >>> position_incidence_matrix(A).toarray().astype(int)
+    array([[-1,  0],
+           [ 0, -1],
+           [ 1,  0],
+           [ 0,  1]])
+    """
+    return sp.kron(sp.csr_matrix(A), sp.identity(2), format="csr")
+
+
+# --------------------------------------------------------------------------- spanning trees
+@dataclass(frozen=True, eq=False)
+class SpanningTree:
+    """A spanning tree of a connected pose graph, rooted at the anchor.
+
+    Attributes
+    ----------
+    kind : str
+        ``"odometric"`` or ``"bfs"``.
+    root : int
+        Row of the root vertex (the anchor).
+    edges : ndarray of int, shape (n,)
+        Tree edges (edge indices), ``n = graph.n - 1`` of them.
+    parent : ndarray of int, shape (graph.n,)
+        Parent row of each vertex; the root is its own parent.
+    parent_edge : ndarray of int, shape (graph.n,)
+        Edge joining each vertex to its parent (−1 at the root).
+    down : ndarray of bool, shape (graph.n,)
+        Whether that edge is stored parent → child (tail at the parent).
+    order : ndarray of int, shape (graph.n,)
+        Vertices in breadth-first order from the root: parents before children.
+    depth : ndarray of int, shape (graph.n,)
+        Number of tree edges between each vertex and the root.
+    in_tree : ndarray of bool, shape (m,)
+        Edge mask of the tree.
+    """
+
+    kind: str
+    root: int
+    edges: np.ndarray
+    parent: np.ndarray
+    parent_edge: np.ndarray
+    down: np.ndarray
+    order: np.ndarray
+    depth: np.ndarray
+    in_tree: np.ndarray
+
+    @property
+    def chords(self):
+        """ndarray of int, shape (m - n,): edges not in the tree (Cor. 3), in edge order."""
+        return np.flatnonzero(~self.in_tree)
+
+    @property
+    def d(self):
+        """The cyclomatic number ``m - n`` = number of chords (Cor. 1)."""
+        return int((~self.in_tree).sum())
+
+    def potentials(self, values):
+        """Sums of signed edge values along the tree path from the root to every vertex.
+
+        ``phi[root] = 0`` and ``phi[v] = phi[parent(v)] ± values[parent_edge(v)]`` (+ when the
+        edge is stored parent → child).  With ``values`` = the relative orientations δ this is
+        the orientation that the tree alone assigns to each node, **not wrapped** (§IV-E).
+
+        Computed by pointer jumping: ``log2(max depth)`` vectorized rounds, no Python loop over
+        vertices.
+
+        Parameters
+        ----------
+        values : array_like, shape (m,)
+
+        Returns
+        -------
+        ndarray, shape (graph.n,)
+        """
+        values = np.asarray(values, dtype=float)
+        local = np.zeros(self.parent.size)
+        child = np.flatnonzero(self.parent_edge >= 0)
+        local[child] = np.where(self.down[child], 1.0, -1.0) * values[self.parent_edge[child]]
+        up = self.parent.copy()
+        # after round r, local[v] holds the sum over the 2^r edges above v (or up to the root)
+        while np.any(up != self.root):
+            local = local + local[up]
+            up = up[up]
+        return local
+
+    def path(self, u, v):
+        """The tree path from vertex row ``u`` to vertex row ``v``.
+
+        Returns
+        -------
+        edges : ndarray of int
+            Edge indices in the order they are walked.
+        signs : ndarray of float
+            +1 where an edge is walked from its tail to its head, −1 otherwise.
+        """
+        up_u, up_v = [], []
+        a, b = int(u), int(v)
+        while self.depth[a] > self.depth[b]:
+            up_u.append(a)
+            a = int(self.parent[a])
+        while self.depth[b] > self.depth[a]:
+            up_v.append(b)
+            b = int(self.parent[b])
+        while a != b:
+            up_u.append(a)
+            up_v.append(b)
+            a, b = int(self.parent[a]), int(self.parent[b])
+        # u climbs to the common ancestor (against 'down'), then v's branch is walked downward
+        up_u, up_v = np.array(up_u, dtype=np.int64), np.array(up_v[::-1], dtype=np.int64)
+        edges = np.concatenate([self.parent_edge[up_u], self.parent_edge[up_v]]).astype(np.int64)
+        signs = np.concatenate(
+            [np.where(self.down[up_u], -1.0, 1.0), np.where(self.down[up_v], 1.0, -1.0)]
+        )
+        return edges, signs
+
+
+def _disconnected(graph):
+    count, labels = graph.components()
+    sizes = np.bincount(labels)
+    return GraphError(
+        f"the graph is not connected: {count} components (sizes "
+        f"{', '.join(map(str, sizes[:6]))}{', ...' if count > 6 else ''}); a spanning tree, and "
+        "LAGO, need a connected graph (Carlone et al. 2011, Lemma 1) — keep the largest component "
+        "or add the missing odometric edges"
+    )
+
+
+def _rooted(graph, kind, tree_edges, root):
+    """Orient a set of n tree edges away from ``root``: parents, depths and breadth-first order."""
+    n, e = graph.n, graph.edges
+    t = np.asarray(tree_edges, dtype=np.int64)
+    adj = sp.csr_matrix(
+        (
+            np.concatenate([t, t]) + 1.0,
+            (np.concatenate([e[t, 0], e[t, 1]]), np.concatenate([e[t, 1], e[t, 0]])),
+        ),
+        shape=(n, n),
+    )
+    order, pred = breadth_first_order(adj, root, directed=False, return_predecessors=True)
+    if order.size != n:
+        raise _disconnected(graph)
+    parent = np.where(pred < 0, root, pred).astype(np.int64)
+    parent[root] = root
+    child = np.flatnonzero(np.arange(n) != root)
+    parent_edge = np.full(n, -1, dtype=np.int64)
+    parent_edge[child] = np.asarray(adj[parent[child], child]).ravel().astype(np.int64) - 1
+    down = np.zeros(n, dtype=bool)
+    down[child] = e[parent_edge[child], 0] == parent[child]
+    # depth by pointer jumping, as in SpanningTree.potentials
+    up, depth = parent.copy(), (np.arange(n) != root).astype(np.int64)
+    while np.any(up != root):
+        depth = depth + depth[up]
+        up = up[up]
+    in_tree = np.zeros(graph.m, dtype=bool)
+    in_tree[t] = True
+    for a in (t, parent, parent_edge, down, order, depth, in_tree):
+        a.setflags(write=False)
+    return SpanningTree(kind, int(root), t, parent, parent_edge, down, order, depth, in_tree)
+
+
+def odometric_tree(graph, anchor=None):
+    """The spanning tree of odometric edges (Carlone et al. 2011, Prop. 2).
+
+    The edges between consecutive ids ``k → k+1`` form a spanning path; the chords are then the
+    loop closures (Cor. 3).  Where two edges join the same consecutive pair, the first stored
+    forward is the tree edge and the other is a chord; an edge stored ``k+1 → k`` (GTSAM's
+    ``.graph`` files) serves when no forward one exists.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    anchor : int, optional
+        Vertex id of the root; default: the smallest id.
+
+    Returns
+    -------
+    SpanningTree
+
+    Raises
+    ------
+    GraphError
+        If a consecutive pair has no edge (the odometric chain is broken): use :func:`bfs_tree`.
+    """
+    root = _anchor_row(graph, anchor)
+    if not graph.is_connected:
+        raise _disconnected(graph)
+    try:
+        edge, _ = graph.odometric_chain()
+    except GraphError as exc:
+        raise GraphError(f"{exc}. Without it there is no odometric tree: use tree='bfs'") from None
+    return _rooted(graph, "odometric", edge, root)
+
+
+def bfs_tree(graph, anchor=None):
+    """A breadth-first spanning tree from the anchor.
+
+    For graphs whose odometric chain is broken.  Among parallel edges the first stored one is
+    used.  The tree is shallow (depth = graph distance from the anchor), so its fundamental
+    circuits are short.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    anchor : int, optional
+        Vertex id of the root; default: the smallest id.
+
+    Returns
+    -------
+    SpanningTree
+
+    Raises
+    ------
+    GraphError
+        If the graph is not connected.
+    """
+    root = _anchor_row(graph, anchor)
+    n, e = graph.n, graph.edges
+    a, b = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
+    key = a * n + b
+    ok = a != b
+    uniq, first = np.unique(key[ok], return_index=True)
+    first = np.flatnonzero(ok)[first]
+    adj = sp.csr_matrix(
+        (
+            np.ones(2 * first.size),
+            (np.concatenate([a[first], b[first]]), np.concatenate([b[first], a[first]])),
+        ),
+        shape=(n, n),
+    )
+    order, pred = breadth_first_order(adj, root, directed=False, return_predecessors=True)
+    if order.size != n:
+        raise _disconnected(graph)
+    child = order[1:]
+    p = pred[child]
+    k = np.minimum(p, child) * n + np.maximum(p, child)
+    tree = first[np.searchsorted(uniq, k)]
+    return _rooted(graph, "bfs", np.sort(tree), root)
+
+
+def spanning_tree(graph, tree="odometric", anchor=None):
+    """A spanning tree by name, or a given :class:`SpanningTree` checked against the graph.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    tree : {"odometric", "bfs"} or SpanningTree
+    anchor : int, optional
+        Vertex id of the root; default: the smallest id.
+
+    Returns
+    -------
+    SpanningTree
+    """
+    if isinstance(tree, SpanningTree):
+        if tree.in_tree.size != graph.m or tree.parent.size != graph.n:
+            raise GraphError(
+                f"the spanning tree was built for a graph with {tree.parent.size} vertices and "
+                f"{tree.in_tree.size} edges; this one has {graph.n} and {graph.m}"
+            )
+        return tree
+    if tree == "odometric":
+        return odometric_tree(graph, anchor)
+    if tree == "bfs":
+        return bfs_tree(graph, anchor)
+    raise ValueError(f"tree must be one of {TREES} or a SpanningTree; got {tree!r}")
+
+
+# --------------------------------------------------------------------------- cycles
+def cyclomatic_number(graph):
+    """``d = m - n`` for a connected graph: the dimension of its cycle space (Cor. 1).
+
+    In lagolib's count of vertices, ``d = graph.m - graph.n + (number of components)``.
+    """
+    return graph.m - graph.n + graph.components()[0]
+
+
+def fundamental_circuit(graph, tree, chord):
+    """The fundamental circuit of a chord (Carlone et al. 2011, Def. 1).
+
+    The chord ``(i, j)`` walked forward, then the unique tree path from ``j`` back to ``i``.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    tree : SpanningTree
+    chord : int
+        Edge index of a chord.
+
+    Returns
+    -------
+    edges : ndarray of int
+        The chord first, then the tree edges in walking order.
+    signs : ndarray of float
+        +1 for an edge walked tail → head, −1 for one walked backwards: the non-zero entries of
+        the circuit vector ``c`` (§IV-E).
+    """
+    chord = int(chord)
+    if not 0 <= chord < graph.m or tree.in_tree[chord]:
+        raise GraphError(f"edge {chord} is not a chord of this spanning tree")
+    i, j = graph.edges[chord]
+    edges, signs = tree.path(j, i)
+    return np.concatenate([[chord], edges]), np.concatenate([[1.0], signs])
+
+
+@dataclass(frozen=True, eq=False)
+class CycleBasis:
+    """The fundamental cycle basis of a spanning tree (Carlone et al. 2011, Thm. 2, eq. 19).
+
+    Attributes
+    ----------
+    C : scipy.sparse.csr_matrix, shape (d, m)
+        Row ``c`` is the circuit vector of the ``c``-th chord, columns in the graph's edge order.
+    chords : ndarray of int, shape (d,)
+    tree_edges : ndarray of int, shape (n,)
+    """
+
+    C: sp.csr_matrix
+    chords: np.ndarray
+    tree_edges: np.ndarray
+
+    @property
+    def d(self):
+        """Cyclomatic number (Cor. 1)."""
+        return int(self.chords.size)
+
+    @property
+    def edge_order(self):
+        """ndarray of int, shape (m,): chords first, then tree edges — the column order of eq. 19."""
+        return np.concatenate([self.chords, self.tree_edges])
+
+    @property
+    def ordered(self):
+        """𝒞 with columns in :attr:`edge_order`: the form ``[I_d ℬ]`` of eq. 19."""
+        return self.C[:, self.edge_order]
+
+    @property
+    def B(self):
+        """ℬ of eq. 19, shape (d, n): entries in {−1, 0, 1}, columns in tree-edge order."""
+        return self.C[:, self.tree_edges]
+
+
+def cycle_basis(graph, tree="odometric", anchor=None):
+    """Cycle basis matrix 𝒞 of the fundamental circuits (Carlone et al. 2011, eq. 19).
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    tree : {"odometric", "bfs"} or SpanningTree
+    anchor : int, optional
+        Root of the tree (default: the smallest id).
+
+    Returns
+    -------
+    CycleBasis
+        ``𝒞 𝒜^T = 0``: every circuit enters each node as often as it leaves it.
+
+    Notes
+    -----
+    ``nnz(𝒞)`` is the total length of the fundamental circuits — up to ``d × n`` for the
+    odometric tree of a long trajectory — so this is for teaching and small graphs.  LAGO's
+    regularization only needs ``𝒞 δ``, which :meth:`SpanningTree.potentials` gives in
+    ``O(m log n)`` without forming 𝒞.
+
+    Examples
+    --------
+    A square 0 → 1 → 2 → 3 with the loop closure 3 → 0 and a diagonal 0 → 2:
+
+    >>> import numpy as np
+    >>> from lagolib import PoseGraph
+    >>> g = PoseGraph(np.zeros((4, 3)), [(0, 1), (1, 2), (2, 3), (3, 0), (0, 2)],
+    ...               np.zeros((5, 3)), np.tile(np.eye(3), (5, 1, 1)))
+    >>> basis = cycle_basis(g)
+    >>> basis.chords, basis.d
+    (array([3, 4]), 2)
+    >>> basis.ordered.toarray().astype(int)
+    array([[ 1,  0,  1,  1,  1],
+           [ 0,  1, -1, -1,  0]])
+
+    References
+    ----------
+    Chen, *Graph Theory and Its Engineering Applications*, 1997; Carlone et al. 2011, §IV-E.
+    """
+    tree = spanning_tree(graph, tree, anchor)
+    rows, cols, vals = [], [], []
+    for c, chord in enumerate(tree.chords):
+        edges, signs = fundamental_circuit(graph, tree, chord)
+        rows.append(np.full(edges.size, c))
+        cols.append(edges)
+        vals.append(signs)
+    d = tree.d
+    if d:
+        rows, cols, vals = map(np.concatenate, (rows, cols, vals))
+    C = sp.csr_matrix((vals, (rows, cols)), shape=(d, graph.m))
+    return CycleBasis(C, tree.chords, tree.edges)

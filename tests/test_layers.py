@@ -1,0 +1,50 @@
+"""The modules form the acyclic layers the README and ``lagolib/__init__.py`` describe."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import lagolib
+
+# each module may import only from modules in earlier layers (or its own layer's helpers below it)
+LAYERS = [
+    ["errors", "se2"],
+    ["graph"],
+    ["io", "simulate"],
+    ["datasets"],
+    ["topology"],
+    ["linalg"],
+    ["estimation"],
+    ["gauss_newton", "lago"],
+    ["plotting"],
+    ["uncertainty"],
+]
+RANK = {name: k for k, layer in enumerate(LAYERS) for name in layer}
+ROOT = Path(lagolib.__file__).parent
+
+
+def _imports(path):
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level == 1:
+            if node.module:
+                yield node.module.split(".")[0]
+            else:
+                yield from (alias.name for alias in node.names)
+
+
+@pytest.mark.parametrize("module", sorted(RANK))
+def test_module_imports_only_earlier_layers(module):
+    for dep in _imports(ROOT / f"{module}.py"):
+        assert dep in RANK, f"{module} imports {dep}, which is not in a layer"
+        assert RANK[dep] < RANK[module], f"{module} (layer {RANK[module]}) imports {dep}"
+
+
+def test_every_module_has_a_layer():
+    modules = {p.stem for p in ROOT.glob("*.py")} - {"__init__", "symbolic"}
+    assert modules == set(RANK)
+
+
+def test_symbolic_needs_only_sympy():
+    assert list(_imports(ROOT / "symbolic.py")) == []
