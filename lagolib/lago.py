@@ -403,8 +403,8 @@ class LagoResult:
     def covariance(self, vertices=None, *, batch=128):
         """Marginal covariance of ``p*`` at vertices, in (x, y, θ) order — blocks of ``I_p*^-1``.
 
-        Solves ``I_p* X = E`` for three columns per vertex (``batch`` vertices at a time), using
-        phase 3's factorization; the anchor's covariance is zero.
+        Three columns of ``I_p*^-1`` per vertex, ``batch`` vertices at a time, from phase 3's
+        factorization (:meth:`lagolib.estimation.BLUE.covariance`); the anchor's covariance is zero.
 
         Parameters
         ----------
@@ -427,12 +427,8 @@ class LagoResult:
             s = sel[start : start + batch]
             c = col[rows[s]]
             idx = np.column_stack([2 * c, 2 * c + 1, 2 * n + c])  # x, y, θ of each vertex
-            E = np.zeros((3 * n, idx.size))
-            E[idx.ravel(), np.arange(idx.size)] = 1.0
-            X = self.phase3.factor.solve(E)
-            blocks = X[idx.ravel()].reshape(s.size, 3, s.size, 3)
-            P = blocks[np.arange(s.size), :, np.arange(s.size), :]
-            out[s] = 0.5 * (P + np.swapaxes(P, 1, 2))
+            P = self.phase3.covariance(idx.ravel()).reshape(s.size, 3, s.size, 3)
+            out[s] = P[np.arange(s.size), :, np.arange(s.size), :]
         return out
 
 

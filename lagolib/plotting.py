@@ -30,6 +30,18 @@ def _segments(poses, edges):
     return np.stack([poses[edges[:, 0], :2], poses[edges[:, 1], :2]], axis=1)
 
 
+def _finish(ax, title):
+    """Equal-aspect map axes in metres, with a legend and an optional title."""
+    ax.autoscale_view()
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="best", fontsize="small")
+    if title:
+        ax.set_title(title)
+    return ax
+
+
 def plot_graph(
     graph, poses=None, ax=None, *, odometry_kw=None, loop_kw=None, vertices=False, title=None
 ):
@@ -70,14 +82,7 @@ def plot_graph(
     ax.add_collection(LineCollection(_segments(poses, graph.edges[~odo]), **style))
     if vertices:
         ax.plot(poses[:, 0], poses[:, 1], ".", color="k", markersize=2)
-    ax.autoscale_view()
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.legend(loc="best", fontsize="small")
-    if title:
-        ax.set_title(title)
-    return ax
+    return _finish(ax, title)
 
 
 def plot_spanning_tree(
@@ -145,14 +150,7 @@ def plot_spanning_tree(
         mid = 0.5 * (poses[graph.edges[:, 0], :2] + poses[graph.edges[:, 1], :2])
         for k, (x, y) in enumerate(mid):
             ax.annotate(f"e{k}", (x, y), fontsize=7, color="tab:gray", ha="center")
-    ax.autoscale_view()
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.legend(loc="best", fontsize="small")
-    if title:
-        ax.set_title(title)
-    return ax
+    return _finish(ax, title)
 
 
 def plot_trajectories(trajectories, ax=None, *, title=None, **kw):

@@ -212,12 +212,7 @@ class SpanningTree:
         local = np.zeros(self.parent.size)
         child = np.flatnonzero(self.parent_edge >= 0)
         local[child] = np.where(self.down[child], 1.0, -1.0) * values[self.parent_edge[child]]
-        up = self.parent.copy()
-        # after round r, local[v] holds the sum over the 2^r edges above v (or up to the root)
-        while np.any(up != self.root):
-            local = local + local[up]
-            up = up[up]
-        return local
+        return _sum_to_root(self.parent, self.root, local)
 
     def path(self, u, v):
         """The tree path from vertex row ``u`` to vertex row ``v``.
@@ -248,6 +243,20 @@ class SpanningTree:
             [np.where(self.down[up_u], -1.0, 1.0), np.where(self.down[up_v], 1.0, -1.0)]
         )
         return edges, signs
+
+
+def _sum_to_root(parent, root, local):
+    """``out[v]`` = sum of ``local`` over ``v`` and its ancestors, by pointer jumping.
+
+    ``parent[root] == root`` and ``local[root] == 0``; after round ``r``, ``out[v]`` holds the sum
+    over the ``2^r`` vertices from ``v`` upward (or up to the root), so ``log2(depth)`` vectorized
+    rounds suffice.
+    """
+    up = parent.copy()
+    while np.any(up != root):
+        local = local + local[up]
+        up = up[up]
+    return local
 
 
 def _disconnected(graph):
@@ -282,11 +291,7 @@ def _rooted(graph, kind, tree_edges, root):
     parent_edge[child] = np.asarray(adj[parent[child], child]).ravel().astype(np.int64) - 1
     down = np.zeros(n, dtype=bool)
     down[child] = e[parent_edge[child], 0] == parent[child]
-    # depth by pointer jumping, as in SpanningTree.potentials
-    up, depth = parent.copy(), (np.arange(n) != root).astype(np.int64)
-    while np.any(up != root):
-        depth = depth + depth[up]
-        up = up[up]
+    depth = _sum_to_root(parent, root, (np.arange(n) != root).astype(np.int64))
     in_tree = np.zeros(graph.m, dtype=bool)
     in_tree[t] = True
     for a in (t, parent, parent_edge, down, order, depth, in_tree):
