@@ -288,7 +288,8 @@ def _rooted(graph, kind, tree_edges, root):
     parent[root] = root
     child = np.flatnonzero(np.arange(n) != root)
     parent_edge = np.full(n, -1, dtype=np.int64)
-    parent_edge[child] = np.asarray(adj[parent[child], child]).ravel().astype(np.int64) - 1
+    if child.size:  # a single vertex has no tree edges
+        parent_edge[child] = np.asarray(adj[parent[child], child]).ravel().astype(np.int64) - 1
     down = np.zeros(n, dtype=bool)
     down[child] = e[parent_edge[child], 0] == parent[child]
     depth = _sum_to_root(parent, root, (np.arange(n) != root).astype(np.int64))

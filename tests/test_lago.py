@@ -230,3 +230,17 @@ def test_lago_is_near_the_optimum_and_gauss_newton_finishes_in_3_steps(benchmark
     assert gn.chi2 == pytest.approx(optimum, rel=1e-8)
     three = lagolib.optimize(g, res.poses, max_iterations=3)
     assert three.chi2 == pytest.approx(optimum, rel=1e-9)
+
+
+def test_small_graphs_single_vertex_parallel_and_backward_edges():
+    eye = np.tile(np.eye(3), (2, 1, 1))
+    single = PoseGraph(np.zeros((1, 3)), np.zeros((0, 2), int), np.zeros((0, 3)), eye[:0])
+    res = L.lago(single)
+    np.testing.assert_array_equal(res.poses, 0.0)
+    assert res.covariance().shape == (1, 3, 3)
+    # two equally precise readings of the same edge: their average
+    twice = PoseGraph(np.zeros((2, 3)), [(0, 1), (0, 1)], [[1, 0, 0.1], [1.1, 0, 0.1]], eye)
+    np.testing.assert_allclose(L.lago(twice).poses[1], [1.05, 0.0, 0.1], atol=1e-12)
+    # an odometric edge stored backward (1 -> 0) is inverted
+    back = PoseGraph(np.zeros((2, 3)), [(1, 0)], [[1, 0, 0.1]], eye[:1])
+    np.testing.assert_allclose(L.lago(back).poses[1], se2.inverse([1.0, 0.0, 0.1]), atol=1e-12)
