@@ -3,7 +3,7 @@
 Layers (each imports only from the ones before it)::
 
     errors, se2 -> graph -> io, simulate -> datasets -> topology -> linalg -> estimation
-    -> gauss_newton, lago -> plotting -> uncertainty;   symbolic (sympy only)
+    -> gauss_newton, lago -> closed_form -> plotting -> uncertainty;   symbolic (sympy only)
 
 Public API
 ----------
@@ -30,16 +30,21 @@ estimation
     The BLUE in information form, first-order covariance propagation.
 lago, LagoResult
     Carlone et al.'s linear approximation: regularization and the three phases.
+closed_form
+    Lodi Rizzini's closed form: poses as (x, y, cos, sin), position and angular equations, the
+    orthogonality condition solved by Newton's method.
 uncertainty
     Marginal and relative covariances from the sparse ``H``, loop-closure gating.
 symbolic
-    sympy derivations of the error and its Jacobians.
+    sympy derivations: the lecture notes' error and Jacobians; Lodi Rizzini's sin/cos error,
+    gradient and closed-form matrices.
 plotting
     ``plot_graph``, ``plot_spanning_tree``, ``plot_trajectories``, ``plot_poses``,
     ``plot_covariance_ellipses``.
 """
 
 from . import (
+    closed_form,
     datasets,
     estimation,
     gauss_newton,
@@ -53,6 +58,7 @@ from . import (
     uncertainty,
 )
 from .errors import (
+    ConvergenceError,
     DatasetError,
     GaugeError,
     GraphError,
@@ -87,6 +93,7 @@ __all__ = [
     "estimation",
     "lago",
     "LagoResult",
+    "closed_form",
     "uncertainty",
     "symbolic",
     "PoseGraph",
@@ -114,6 +121,7 @@ __all__ = [
     "DatasetError",
     "GaugeError",
     "NotPositiveDefiniteError",
+    "ConvergenceError",
     "LagolibWarning",
     "SkippedLinesWarning",
 ]

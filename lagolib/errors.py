@@ -15,6 +15,7 @@ __all__ = [
     "DatasetError",
     "GaugeError",
     "NotPositiveDefiniteError",
+    "ConvergenceError",
     "LagolibWarning",
     "SkippedLinesWarning",
 ]
@@ -90,6 +91,23 @@ class NotPositiveDefiniteError(LagolibError, ArithmeticError):
     def __init__(self, message: str, *, pivot: int | None = None):
         super().__init__(message)
         self.pivot = pivot
+
+
+class ConvergenceError(LagolibError, RuntimeError):
+    """An iterative solver stopped before its equations were satisfied; nothing is returned.
+
+    Attributes
+    ----------
+    iterations : int
+        Iterations done.
+    residuals : list of float
+        The residual norm after each iteration (the first entry is the initial one).
+    """
+
+    def __init__(self, message: str, *, iterations: int = 0, residuals=()):
+        super().__init__(message)
+        self.iterations = iterations
+        self.residuals = list(residuals)
 
 
 class LagolibWarning(UserWarning):

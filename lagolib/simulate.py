@@ -64,8 +64,9 @@ def measure(
     edges : array_like of int, shape (m, 2)
         ``(i, j)``: measure pose ``j`` in the frame of ``i``.
     rng : int or numpy.random.Generator
-    sigma_xy, sigma_theta : float
-        Standard deviations (``"fixed"``), or per metre / per radian (``"proportional"``).
+    sigma_xy, sigma_theta : float or array_like of shape (m,)
+        Standard deviations (``"fixed"``), or per metre / per radian (``"proportional"``); one
+        value for all edges or one per edge.
     noise : {"fixed", "proportional"}
     floor : float
         Smallest motion used to scale the ``"proportional"`` noise (keeps straight motions from
@@ -83,9 +84,10 @@ def measure(
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     z = se2.between(truth[edges[:, 0]], truth[edges[:, 1]])  # p_j ⊖ p_i, Carlone eq. (1)
     m = len(edges)
+    sigma_xy = np.broadcast_to(np.asarray(sigma_xy, dtype=float), (m,))
+    sigma_theta = np.broadcast_to(np.asarray(sigma_theta, dtype=float), (m,))
     if noise == "fixed":
-        sxy = np.full(m, float(sigma_xy))
-        sth = np.full(m, float(sigma_theta))
+        sxy, sth = sigma_xy.copy(), sigma_theta.copy()
     elif noise == "proportional":
         sxy = sigma_xy * np.maximum(np.hypot(z[:, 0], z[:, 1]), floor)
         sth = sigma_theta * np.maximum(np.abs(z[:, 2]), floor)
@@ -240,14 +242,27 @@ def manhattan_world(
     return measure(truth, edges, rng=rng, **noise)
 
 
-def grid_world(*, rows=10, cols=10, step=1.0, closure_probability=0.5, rng=0, **noise):
+def grid_world(
+    *,
+    rows=10,
+    cols=10,
+    step=1.0,
+    closure_probability=0.5,
+    closure_noise=1.0,
+    sigma_xy=0.05,
+    sigma_theta=0.01,
+    rng=0,
+    **noise,
+):
     """A robot sweeping a ``rows × cols`` grid row by row (100 poses by default).
 
     After Lodi Rizzini's test network (§IV-B, Fig. 2: "100 poses corresponding to a robot moving on
     a grid").  The robot visits every grid point once, boustrophedon: left to right on even rows,
     right to left on odd ones; its heading is the direction to the next point.  Each pair of
     vertically adjacent points that are not consecutive in time is a loop closure with
-    ``closure_probability``.
+    ``closure_probability``.  Loop closures' standard deviations are ``closure_noise`` times the
+    odometry's (place recognition is often less precise than odometry); other keywords go to
+    :func:`measure`.
 
     Returns
     -------
@@ -272,4 +287,12 @@ def grid_world(*, rows=10, cols=10, step=1.0, closure_probability=0.5, rng=0, **
     keep = rng.random(below.size) < closure_probability
     loops = np.sort(np.column_stack([below[keep], above[keep]]), axis=1)
     odo = np.column_stack([np.arange(n - 1), np.arange(1, n)])
-    return measure(truth, np.vstack([odo, loops]), rng=rng, **noise)
+    scale = np.concatenate([np.ones(n - 1), np.full(len(loops), float(closure_noise))])
+    return measure(
+        truth,
+        np.vstack([odo, loops]),
+        rng=rng,
+        sigma_xy=sigma_xy * scale,
+        sigma_theta=sigma_theta * scale,
+        **noise,
+    )

@@ -17,6 +17,7 @@ LAYERS = [
     ["linalg"],
     ["estimation"],
     ["gauss_newton", "lago"],
+    ["closed_form"],
     ["plotting"],
     ["uncertainty"],
 ]
