@@ -252,12 +252,6 @@ def _ranges(lengths):
     return np.arange(total) - starts
 
 
-def _node_numbering(graph):
-    """Node index (rank by id) of every graph row, and the graph row of every node."""
-    vertex = np.argsort(graph.ids, kind="stable")
-    return graph.order, vertex
-
-
 def network(graph):
     """Check Lodi Rizzini's assumptions and build the matrices of §III (:class:`ClosedFormNetwork`).
 
@@ -289,7 +283,8 @@ def network(graph):
         raise TypeError(f"network needs a PoseGraph; got {type(graph).__name__}")
     if graph.n < 2:
         raise GraphError("the closed form needs at least two poses (p_0 and one more)")
-    rank, vertex = _node_numbering(graph)
+    rank = graph.order  # node index of every graph row
+    vertex = np.argsort(graph.ids, kind="stable")  # graph row of every node
     i, j = rank[graph.edges[:, 0]], rank[graph.edges[:, 1]]
     backward = np.flatnonzero(i >= j)
     if backward.size:
@@ -304,17 +299,13 @@ def network(graph):
         )
     n = graph.n - 1
     key = i + (n + 1) * (j - i)  # eq. (20)
-    spanning_pairs = np.flatnonzero(j == i + 1)
-    starts, first = np.unique(i[spanning_pairs], return_index=True)
-    if starts.size < n:
-        k = int(np.setdiff1d(np.arange(n), starts)[0])
-        a, b = graph.ids[vertex[k]], graph.ids[vertex[k + 1]]
+    try:  # the first stored <k-1, k> of each pair is the spanning constraint; copies are loops
+        spanning, _ = graph.odometric_chain()
+    except GraphError as exc:
         raise GraphError(
-            f"the spanning constraint between vertex ids {a} and {b} is missing "
-            f"({n - starts.size} in all); the closed form (Lodi Rizzini §III) needs an edge "
-            "<k-1, k> between every pair of consecutive ids, as a robot's odometry gives"
-        )
-    spanning = spanning_pairs[first]  # the first stored edge of each pair; the rest are loops
+            f"{exc}; the closed form (Lodi Rizzini §III) needs every spanning constraint <k-1, k>, "
+            "as a robot's odometry gives"
+        ) from None
     is_loop = np.ones(graph.m, dtype=bool)
     is_loop[spanning] = False
     loops = np.flatnonzero(is_loop)
@@ -561,8 +552,8 @@ def positions_from_orientations(graph, theta, origin=(0.0, 0.0)):
 
     Parameters
     ----------
-    graph : PoseGraph
-        Satisfying :func:`network`'s assumptions.
+    graph : PoseGraph or ClosedFormNetwork
+        A graph satisfying :func:`network`'s assumptions, or its network (built once).
     theta : array_like, shape (graph.n,)
         Orientation of every vertex (graph rows), e.g. an optimizer's.
     origin : array_like, shape (2,)

@@ -424,11 +424,6 @@ class SincosNetwork:
     A: sp.ImmutableMatrix
 
     @property
-    def n_spanning(self):
-        """Number of spanning constraints, ``n``."""
-        return self.n
-
-    @property
     def t1(self):
         """``[1, 0, t^T]^T``: the angular parameters with ``c_0 = 1``, ``s_0 = 0``, shape (2n+2, 1)."""
         return sp.Matrix([1, 0, *self.t])

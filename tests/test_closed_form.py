@@ -200,7 +200,7 @@ def test_the_papers_assumptions_are_checked():
     assert info.value.edge == 6
     keep = [k for k in range(g.m) if tuple(g.edges[k]) != (3, 4)]
     gap = PoseGraph(g.poses, g.edges[keep], g.measurements[keep], g.information[keep])
-    with pytest.raises(GraphError, match="between vertex ids 3 and 4 is missing"):
+    with pytest.raises(GraphError, match="ids 3 and 4.*needs every spanning constraint"):
         cf.network(gap)
     with pytest.raises(GraphError, match="at least two poses"):
         cf.network(PoseGraph(np.zeros((1, 3)), np.zeros((0, 2), int), [], []))
