@@ -666,12 +666,14 @@ def solve_orthogonality(net, t0, *, rho0=None, tol=1e-10, max_iterations=50):
         raise ValueError(f"t0 must have shape ({2 * n},); got {t.shape}")
     cs = t.reshape(n, 2)
     t = (cs / np.linalg.norm(cs, axis=1, keepdims=True)).ravel()
+    positions = net.positions(t)  # one solve of the position equations serves X and v(t0)
+    X = positions[1:].ravel()
     if rho0 is None:
-        v = net.v(t).reshape(n, 2)
+        d = positions[net.j] - positions[net.i]
+        v = (net.L @ net.t1(t) + net.M @ d.ravel()).reshape(n, 2)  # eq. (36)
         rho = v[:, 0] * t[0::2] - v[:, 1] * t[1::2]
     else:
         rho = np.asarray(rho0, dtype=float).copy()
-    X = net.positions(t)[1:].ravel()
 
     I2 = sp.identity(2)
     N0 = net._N0
