@@ -2,7 +2,7 @@
 
 Layers (each imports only from the ones before it)::
 
-    errors, se2 -> graph -> io, simulate -> datasets -> topology -> linalg -> estimation
+    errors, se2 -> checks -> graph -> io, simulate -> datasets -> topology -> linalg -> estimation
     -> gauss_newton, lago -> closed_form -> plotting -> uncertainty;   symbolic (sympy only)
 
 Public API
@@ -28,8 +28,9 @@ gauss_newton, optimize, Prior
     Gauss–Newton and Levenberg–Marquardt, gauge by prior or fixed poses.
 estimation
     The BLUE in information form, first-order covariance propagation.
-lago, LagoResult
-    Carlone et al.'s linear approximation: regularization and the three phases.
+lago_solve, LagoResult, lago
+    Carlone et al.'s linear approximation (``lago_solve(graph)``, the same function as
+    ``lagolib.lago.lago``): regularization and the three phases.
 closed_form
     Lodi Rizzini's closed form: poses as (x, y, cos, sin), position and angular equations, the
     orthogonality condition solved by Newton's method.
@@ -65,6 +66,8 @@ from .errors import (
     LagolibError,
     LagolibWarning,
     NotPositiveDefiniteError,
+    OptionError,
+    OptionTypeError,
     ParseError,
     SkippedLinesWarning,
 )
@@ -72,6 +75,7 @@ from .gauss_newton import OptimizeResult, Prior, optimize
 from .graph import PoseGraph, chi2, residuals
 from .io import read, read_g2o, read_poses, read_toro, write, write_g2o, write_poses, write_toro
 from .lago import LagoResult
+from .lago import lago as lago_solve
 from .plotting import (
     plot_covariance_ellipses,
     plot_graph,
@@ -93,6 +97,7 @@ __all__ = [
     "estimation",
     "lago",
     "LagoResult",
+    "lago_solve",
     "closed_form",
     "uncertainty",
     "symbolic",
@@ -122,6 +127,8 @@ __all__ = [
     "GaugeError",
     "NotPositiveDefiniteError",
     "ConvergenceError",
+    "OptionError",
+    "OptionTypeError",
     "LagolibWarning",
     "SkippedLinesWarning",
 ]

@@ -10,7 +10,8 @@ lagolib.  :func:`path` finds one of them
    file is an error, never a silent download; or
 2. in lagolib's download cache (``LAGOLIB_CACHE``, default the user cache folder), fetched with
    `pooch <https://www.fatiando.org/pooch/>`_ from the public repository it comes from, pinned to
-   a commit.
+   a commit (never when ``LAGOLIB_OFFLINE=1``; a download waits at most ``LAGOLIB_TIMEOUT``
+   seconds, default 20, for the network).
 
 Either way the file's SHA-256 must equal the registry's, or :class:`~lagolib.errors.DatasetError`
 is raised.
@@ -50,6 +51,8 @@ __all__ = [
     "path",
     "available",
     "load",
+    "Loaded",
+    "load_or_example",
     "example",
     "examples",
 ]
@@ -374,7 +377,7 @@ def path(name, *, download=True):
     p = cache_dir() / _cached_name(d)
     if p.is_file():
         return _check(d, p)
-    if not download:
+    if not download or _offline():
         raise DatasetError(
             f"dataset {name!r} is not in the cache {cache_dir()} and download=False; call "
             f"lagolib.datasets.path({name!r}) once with network access, or set LAGOLIB_DATA to a mirror"
@@ -388,6 +391,7 @@ def path(name, *, download=True):
             fname=_cached_name(d),
             path=cache_dir(),
             progressbar=False,
+            downloader=pooch.HTTPDownloader(timeout=_download_timeout(), progressbar=False),
         )
     except ValueError as exc:  # pooch's checksum mismatch
         raise DatasetError(
@@ -409,6 +413,19 @@ def available(name):
     return p.is_file()
 
 
+def _offline():
+    """True when ``LAGOLIB_OFFLINE`` is set to a non-empty value other than ``0``: never download."""
+    return os.environ.get("LAGOLIB_OFFLINE", "") not in ("", "0")
+
+
+def _download_timeout():
+    """Seconds a download may wait for the network (``LAGOLIB_TIMEOUT``, default 20)."""
+    try:
+        return max(1.0, float(os.environ.get("LAGOLIB_TIMEOUT", "20")))
+    except ValueError:
+        return 20.0
+
+
 def load(name, *, download=True):
     """Read a registered benchmark file.
 
@@ -422,6 +439,80 @@ def load(name, *, download=True):
     d = info(name)
     p = path(name, download=download)
     return read(p) if d.kind == "graph" else read_poses(p)
+
+
+@dataclass(frozen=True)
+class Loaded:
+    """What :func:`load_or_example` found.
+
+    Attributes
+    ----------
+    graph : PoseGraph
+    name : str
+        The benchmark's name when ``real``, else the shipped example's.
+    real : bool
+        True for the public benchmark, False for the shipped stand-in.
+    truth : ndarray or None
+        Ground truth of the stand-in (shipped examples have it), else None.
+    note : str
+        The one line printed: what is used and, for the stand-in, how to get the real file.
+    """
+
+    graph: PoseGraph
+    name: str
+    real: bool
+    truth: np.ndarray | None
+    note: str
+
+
+def load_or_example(name, fallback, *, download=True, quiet=False):
+    """A public benchmark when it can be had, else a shipped example — and one line saying which.
+
+    The chapters call this: the benchmark comes from ``LAGOLIB_DATA``, the cache, or (when
+    ``download`` and the network is there) a checksummed download; when none works, the shipped
+    simulated graph ``fallback`` is used instead and the printed line says how to get the real
+    file.  A mirror that is set but broken is still an error (:func:`path`).
+
+    Parameters
+    ----------
+    name : str
+        A registered benchmark (:func:`names`).
+    fallback : str
+        A shipped example (:func:`examples`).
+    download : bool
+        Try the network when the file is neither mirrored nor cached.
+    quiet : bool
+        Do not print the line (it is in :attr:`Loaded.note` either way).
+
+    Returns
+    -------
+    Loaded
+    """
+    d = info(name)
+    if fallback not in _EXAMPLES:
+        raise DatasetError(f"unknown example {fallback!r}; shipped: {', '.join(_EXAMPLES)}")
+    if d.kind != "graph":
+        raise DatasetError(f"dataset {name!r} holds {d.kind}, not a graph; use load({name!r})")
+    try:
+        graph = load(name, download=download)
+    except DatasetError as exc:
+        if mirror() is not None:  # a mirror that lacks or corrupts a file is the user's to fix
+            raise
+        ex = example(fallback)
+        reason = "no network" if download and not _offline() else "downloads are off"
+        note = (
+            f"Using the shipped simulated graph {fallback!r} ({ex.graph.n} poses, {ex.graph.m} "
+            f"edges) instead of {name!r} ({reason}). For the real file, run "
+            f"lagolib.datasets.path({name!r}) once online, or set LAGOLIB_DATA to a mirror."
+        )
+        del exc
+        if not quiet:
+            print(note)
+        return Loaded(ex.graph, fallback, False, ex.truth, note)
+    note = f"Using the public benchmark {name!r} ({graph.n} poses, {graph.m} edges)."
+    if not quiet:
+        print(note)
+    return Loaded(graph, name, True, None, note)
 
 
 # ---------------------------------------------------------------------- shipped examples

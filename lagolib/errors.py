@@ -16,6 +16,8 @@ __all__ = [
     "GaugeError",
     "NotPositiveDefiniteError",
     "ConvergenceError",
+    "OptionError",
+    "OptionTypeError",
     "LagolibWarning",
     "SkippedLinesWarning",
 ]
@@ -108,6 +110,18 @@ class ConvergenceError(LagolibError, RuntimeError):
         super().__init__(message)
         self.iterations = iterations
         self.residuals = list(residuals)
+
+
+class OptionError(LagolibError, ValueError):
+    """A function's option (keyword argument) has a value outside its allowed range or set.
+
+    The message names the function, the argument, the value given and what is allowed
+    (:mod:`lagolib.checks`).
+    """
+
+
+class OptionTypeError(LagolibError, TypeError):
+    """A function's option has the wrong type (e.g. a float where an integer count is needed)."""
 
 
 class LagolibWarning(UserWarning):
