@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import breadth_first_order
+from scipy.sparse.csgraph import breadth_first_order, dijkstra
 
 from .errors import GraphError
 from .graph import vertex_rows
@@ -41,13 +41,15 @@ __all__ = [
     "spanning_tree",
     "odometric_tree",
     "bfs_tree",
+    "min_uncertainty_tree",
+    "orientation_variances",
     "fundamental_circuit",
     "CycleBasis",
     "cycle_basis",
     "cyclomatic_number",
 ]
 
-TREES = ("odometric", "bfs")
+TREES = ("min_uncertainty", "odometric", "bfs")
 
 
 def incidence_matrix(graph):
@@ -151,7 +153,7 @@ class SpanningTree:
     Attributes
     ----------
     kind : str
-        ``"odometric"`` or ``"bfs"``.
+        ``"min_uncertainty"``, ``"odometric"`` or ``"bfs"`` (``"given"`` for trees built by hand).
     root : int
         Row of the root vertex (the anchor).
     edges : ndarray of int, shape (n,)
@@ -385,7 +387,8 @@ def spanning_tree(graph, tree="odometric", anchor=None):
     Parameters
     ----------
     graph : PoseGraph
-    tree : {"odometric", "bfs"} or SpanningTree
+    tree : {"min_uncertainty", "odometric", "bfs"} or SpanningTree
+        :func:`min_uncertainty_tree`, :func:`odometric_tree` or :func:`bfs_tree`.
     anchor : int, optional
         Vertex id of the root; default: the smallest id.
 
@@ -404,7 +407,96 @@ def spanning_tree(graph, tree="odometric", anchor=None):
         return odometric_tree(graph, anchor)
     if tree == "bfs":
         return bfs_tree(graph, anchor)
+    if tree == "min_uncertainty":
+        return min_uncertainty_tree(graph, anchor)
     raise ValueError(f"tree must be one of {TREES} or a SpanningTree; got {tree!r}")
+
+
+def orientation_variances(graph):
+    """``P_δ`` of each edge: the variance of its relative orientation, in rad².
+
+    The last diagonal entry of the covariance ``Ω_ij⁻¹`` (the same in the g2o frame and in frame
+    ``i``: the rotation between them leaves θ alone).
+
+    Returns
+    -------
+    ndarray, shape (m,)
+    """
+    return np.linalg.inv(graph.information)[:, 2, 2]
+
+
+def min_uncertainty_tree(graph, anchor=None):
+    """The spanning tree through which every orientation is least uncertain.
+
+    The shortest-path tree from the anchor (Dijkstra) where an edge's length is the variance of
+    its relative orientation, ``P_δ`` (:func:`orientation_variances`): each vertex hangs from the
+    path whose summed variance is smallest.  Regularization (Carlone et al. 2011, Theorem 3)
+    rounds ``𝒞 δ / 2π`` around each chord's fundamental circuit; the noise in that sum is the
+    noise accumulated along the circuit, so trees with short, precise paths round correctly on
+    graphs where the odometric tree's long paths pass ±π.  With equal variances it is a
+    breadth-first tree (fewest edges to the anchor).  Among parallel edges the most precise one is
+    used.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    anchor : int, optional
+        Vertex id of the root; default: the smallest id.
+
+    Returns
+    -------
+    SpanningTree
+
+    Raises
+    ------
+    GraphError
+        If the graph is not connected.
+
+    Examples
+    --------
+    A square with a precise diagonal: vertex 2 hangs from the diagonal, not from the
+    imprecise two-edge path.
+
+    >>> import numpy as np
+    >>> from lagolib import PoseGraph
+    >>> info = np.tile(np.eye(3), (5, 1, 1)); info[4, 2, 2] = 100.0
+    >>> g = PoseGraph(np.zeros((4, 3)), [(0, 1), (1, 2), (2, 3), (3, 0), (0, 2)],
+    ...               np.zeros((5, 3)), info)
+    >>> t = min_uncertainty_tree(g)
+    >>> t.edges.tolist(), t.chords.tolist()
+    ([0, 3, 4], [1, 2])
+    """
+    root = _anchor_row(graph, anchor)
+    n, e = graph.n, graph.edges
+    var = orientation_variances(graph)
+    tiny = np.finfo(float).tiny
+    ok = (e[:, 0] != e[:, 1]) & np.isfinite(var) & (var > 0)
+    a, b = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
+    k = np.flatnonzero(ok)
+    # the most precise of parallel edges: sort by (pair, variance, index) and keep the first
+    order = np.lexsort((k, var[k], a[k] * n + b[k]))
+    k = k[order]
+    key = a[k] * n + b[k]
+    keep = np.ones(k.size, dtype=bool)
+    keep[1:] = key[1:] != key[:-1]
+    best = k[keep]
+    w = np.maximum(var[best], tiny)  # csgraph drops explicit zeros
+    adj = sp.csr_matrix(
+        (
+            np.concatenate([w, w]),
+            (np.concatenate([a[best], b[best]]), np.concatenate([b[best], a[best]])),
+        ),
+        shape=(n, n),
+    )
+    dist, pred = dijkstra(adj, directed=True, indices=root, return_predecessors=True)
+    if not np.all(np.isfinite(dist)):
+        raise _disconnected(graph)
+    child = np.flatnonzero(np.arange(n) != root)
+    p = pred[child]
+    pair = np.minimum(p, child) * n + np.maximum(p, child)
+    ukey = key[keep]
+    tree = best[np.searchsorted(ukey, pair)]
+    return _rooted(graph, "min_uncertainty", np.sort(tree), root)
 
 
 # --------------------------------------------------------------------------- cycles
