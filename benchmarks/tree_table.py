@@ -2,7 +2,9 @@
 
 Rows: every graph benchmark reachable through ``lagolib.datasets`` (the ``LAGOLIB_DATA`` mirror
 or the download cache) and simulated Manhattan worlds (3500 poses, as Olson's M3500) with
-rotation noise σ_θ ∈ {0.01, 0.05, 0.1, 0.2} rad, two seeds each.  For each of the trees
+rotation noise σ_θ ∈ {0.01, 0.05, 0.1, 0.2} rad on every edge, two seeds each; and the same
+worlds with *heterogeneous* noise, σ_θ · max(|δ|, 0.1) per edge (``noise="proportional"``:
+turns are up to 16× noisier than straight moves), σ_θ ∈ {0.1, 0.2, 0.3}.  For each of the trees
 ``lagolib.topology.TREES``: LAGO's χ² (the lecture notes' t2v error, g2o information), the number
 of chords regularized, and the χ² Gauss–Newton reaches from LAGO (at most 100 iterations).
 
@@ -22,6 +24,7 @@ import lagolib
 from lagolib import datasets, simulate, topology
 
 SIGMAS = (0.01, 0.05, 0.1, 0.2)
+PROPORTIONAL = (0.1, 0.2, 0.3)
 SEEDS = (0, 1)
 FIELDS = [
     "graph",
@@ -43,7 +46,7 @@ def benchmark_names():
     ]
 
 
-def simulated(sigma_theta, seed):
+def simulated(sigma_theta, seed, noise="fixed"):
     """A 3500-pose Manhattan world (≈ Olson's M3500: ≈ 5.5k edges) with rotation noise σ_θ."""
     return simulate.manhattan_world(
         n_poses=3500,
@@ -51,6 +54,7 @@ def simulated(sigma_theta, seed):
         closure_probability=0.12,
         sigma_xy=0.05,
         sigma_theta=sigma_theta,
+        noise=noise,
         rng=seed,
     ).graph
 
@@ -62,6 +66,9 @@ def graphs():
     for s in SIGMAS:
         for seed in SEEDS:
             yield f"manhattan σθ={s} seed {seed}", simulated(s, seed)
+    for s in PROPORTIONAL:
+        for seed in SEEDS:
+            yield f"manhattan ∝ σθ={s} seed {seed}", simulated(s, seed, "proportional")
 
 
 def row(label, graph, tree):

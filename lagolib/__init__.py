@@ -54,7 +54,6 @@ from . import (
     plotting,
     se2,
     simulate,
-    symbolic,
     topology,
     uncertainty,
 )
@@ -74,7 +73,7 @@ from .errors import (
 from .gauss_newton import OptimizeResult, Prior, optimize
 from .graph import PoseGraph, chi2, residuals
 from .io import read, read_g2o, read_poses, read_toro, write, write_g2o, write_poses, write_toro
-from .lago import LagoResult
+from .lago import LagoResult, RegularizationWarning
 from .lago import lago as lago_solve
 from .plotting import (
     plot_covariance_ellipses,
@@ -85,6 +84,17 @@ from .plotting import (
 )
 
 __version__ = "0.1.0"
+
+
+def __getattr__(name):
+    """``lagolib.symbolic`` is imported on first use: it needs sympy, which takes a second to load."""
+    if name == "symbolic":
+        import importlib
+
+        module = importlib.import_module(".symbolic", __name__)
+        globals()["symbolic"] = module
+        return module
+    raise AttributeError(f"module 'lagolib' has no attribute {name!r}")
 
 __all__ = [
     "se2",
@@ -131,4 +141,5 @@ __all__ = [
     "OptionTypeError",
     "LagolibWarning",
     "SkippedLinesWarning",
+    "RegularizationWarning",
 ]

@@ -20,13 +20,24 @@ entries, ``ρ = [x_1, y_1, x_2, y_2, …]`` has ``2n``, both in the graph's vert
 the anchor (:attr:`LagoResult.free`).  Relative measurements are stacked per edge the same way:
 ``Δ^l = [Δx_1, Δy_1, Δx_2, …]``.
 
-Full information matrices
--------------------------
-LAGO assumes ``P_ij = diag(P_Δ, P_δ)`` (§IV, Remark 2).  A general 3×3 information ``Ω_ij`` is
-reduced to that form by taking the blocks of the *covariance* ``Ω_ij^-1``: ``P_Δ`` is its
-top-left 2×2 block and ``P_δ`` its last diagonal entry (the marginals of position and orientation,
-:func:`split_information`).  For diagonal ``Ω`` this changes nothing.  GTSAM's ``lago.initialize``
-refuses non-diagonal noise and skips phase 2's covariance; lagolib does both.
+Information frames
+------------------
+lagolib stores each edge's information ``Ω_ij`` in the **g2o frame** (it weights the position
+error rotated into the frame of the measured pose ``Z_ij``).  LAGO's cost (eq. 3–4, 6) weights the
+position error in the **frame of pose i**.  :func:`frame_i_information` converts,
+``G Ω Gᵀ`` with ``G = blockdiag(R(θ_z), 1)``; phase 2 then rotates ``P_Δ`` into the **global
+frame**, ``P_Δg = R̂ P_Δ R̂ᵀ`` (eq. 10).  For a general 3×3 information LAGO's assumption
+``P_ij = diag(P_Δ, P_δ)`` (§IV; Remark 2, §V) is met by taking the blocks of the frame-``i``
+*covariance* (:func:`split_information`): the marginals of position and orientation.  GTSAM's
+``lago.initialize`` refuses non-diagonal noise and skips phase 2's covariance; lagolib does both.
+
+Spanning trees
+--------------
+Regularization rounds the orientation sums around the fundamental circuits of a spanning tree.
+The paper uses the odometric tree (Prop. 2); lagolib's default is the tree of least accumulated
+orientation variance (:func:`lagolib.topology.min_uncertainty_tree`), chosen from the table in
+chapter 5 (``benchmarks/tree_table.py``).  Each chord's distance from the rounding boundary is
+reported (:attr:`Regularization.margin`) and a :class:`RegularizationWarning` flags chords near it.
 
 References
 ----------
@@ -45,7 +56,7 @@ import scipy.sparse as sp
 
 from . import se2
 from .checks import check_choice, check_real
-from .errors import LagolibWarning
+from .errors import LagolibWarning, OptionTypeError
 from .estimation import BLUE, blue, joint_information
 from .graph import PoseGraph, vertex_rows
 from .topology import (
@@ -153,7 +164,7 @@ def split_information(graph):
            [0., 9.]]), array([25.]))
     """
     if not isinstance(graph, PoseGraph):
-        raise TypeError(
+        raise OptionTypeError(
             "split_information needs the PoseGraph (the g2o-frame information is rotated by each "
             f"edge's measured angle into frame i); got {type(graph).__name__}"
         )
@@ -296,9 +307,14 @@ def _warn_margins(graph, reg, threshold, stacklevel):
         f"regularization may be wrong: {close.size} of {reg.chords.size} chords summed to within "
         f"{threshold} turns of the rounding boundary ±½ (worst: edge {e}, {a} -> {b}, "
         f"{reg.cycle_sums[w]:+.3f} rad around its circuit, margin {reg.margin[w]:.3f} turns) with "
-        f"the {reg.tree.kind!r} tree. The noise around those circuits approaches ±π: use a tree "
-        "with shorter, more precise paths (tree='min_uncertainty'), or check those loop "
-        "closures for outliers",
+        f"the {reg.tree.kind!r} tree. The noise around those circuits approaches ±π: "
+        + (
+            "check those loop closures for outliers, or the orientation noise is too large "
+            "for any tree"
+            if reg.tree.kind == "min_uncertainty"
+            else "use a tree with shorter, more precise paths (tree='min_uncertainty'), or "
+            "check those loop closures for outliers"
+        ),
         RegularizationWarning,
         stacklevel=stacklevel,
     )
@@ -322,7 +338,7 @@ def phase1_orientations(graph, delta_bar, *, anchor=None, omega_delta=None, back
     anchor : int, optional
         Vertex id with ``θ = 0`` (default: the smallest).
     omega_delta : ndarray, shape (m,), optional
-        ``P_δ^-1`` per edge; default from :func:`split_information`.
+        ``P_δ^-1`` per edge (frame-free); default from :func:`split_information`.
     backend : {"auto", "qdldl", "scipy"}
 
     Returns
@@ -338,7 +354,11 @@ def phase1_orientations(graph, delta_bar, *, anchor=None, omega_delta=None, back
 
 
 def _position_blocks(graph, theta_full, Omega_Delta):
-    """``R̂ Δ^l`` (m, 2) and the block-diagonal ``P_Δg^-1 = R̂ P_Δ^-1 R̂^T`` (2m, 2m)."""
+    """``Δ^g = R̂ Δ^l`` (m, 2) and the block-diagonal ``P_Δg^-1 = R̂ P_Δ^-1 R̂^T`` (2m, 2m).
+
+    ``Omega_Delta`` is in the frame of each edge's tail pose ``i``; both outputs are in the global
+    frame (Carlone et al. 2011, eq. 9–10).
+    """
     Ri = se2.rotation(theta_full[graph.edges[:, 0]])
     Delta_g = np.einsum("kab,kb->ka", Ri, graph.measurements[:, :2])
     Wk = Ri @ Omega_Delta @ np.swapaxes(Ri, 1, 2)
@@ -362,13 +382,14 @@ def positions_given_orientations(graph, theta, *, anchor=None, Omega_Delta=None,
         Orientation of every vertex (graph rows; the anchor's entry is ignored and taken as 0).
     anchor : int, optional
     Omega_Delta : ndarray, shape (m, 2, 2), optional
-        ``P_Δ^-1`` per edge; default from :func:`split_information`.
+        ``P_Δ^-1`` per edge in the frame of its tail pose ``i``; default from
+        :func:`split_information`.
     backend : {"auto", "qdldl", "scipy"}
 
     Returns
     -------
     BLUE
-        ``estimate`` is ``ρ̂ = [x_1, y_1, x_2, y_2, …]``, shape (2n,).
+        ``estimate`` is ``ρ̂ = [x_1, y_1, x_2, y_2, …]`` (global frame), shape (2n,).
     """
     if Omega_Delta is None:
         Omega_Delta = split_information(graph)[0]
@@ -393,9 +414,9 @@ class Phase2:
     Delta_g : ndarray, shape (m, 2)
         Relative positions in the global frame.
     J : scipy.sparse.csr_matrix, shape (2m, n)
-        ``∂(R(θ) Δ^l) / ∂θ`` at ``θ̂`` (eq. 11).
+        ``∂(R(θ) Δ^l) / ∂θ`` at ``θ̂`` (eq. 11), global frame.
     W : scipy.sparse.csr_matrix, shape (2m, 2m)
-        ``P_Δg^-1 = R̂ P_Δ^-1 R̂^T``, block diagonal.
+        ``P_Δg^-1 = R̂ P_Δ^-1 R̂^T``, block diagonal, global frame (``P_Δ`` is in frame ``i``).
     """
 
     z: np.ndarray
@@ -424,6 +445,8 @@ def phase2_relative_positions(graph, theta_hat, *, anchor=None, Omega_Delta=None
     anchor : int, optional
         The anchor phase 1 used.
     Omega_Delta : ndarray, shape (m, 2, 2), optional
+        ``P_Δ^-1`` per edge in the frame of its tail pose ``i``; default from
+        :func:`split_information` (which converts lagolib's g2o-frame information).
 
     Returns
     -------
@@ -556,8 +579,10 @@ def lago(graph, tree="min_uncertainty", anchor=None, *, margin_warning=0.1, back
     Parameters
     ----------
     graph : PoseGraph
-        Connected; full 3×3 information matrices are reduced to ``diag(P_Δ, P_δ)`` by taking the
-        blocks of their covariance (Remark 2, :func:`split_information`).
+        Connected; information in the g2o frame, as lagolib stores it.  It is rotated into the
+        frame of each edge's tail pose (:func:`frame_i_information`) and reduced to
+        ``diag(P_Δ, P_δ)`` by taking the blocks of its covariance (§IV, Remark 2;
+        :func:`split_information`).
     tree : {"min_uncertainty", "odometric", "bfs"} or SpanningTree
         Spanning tree for the regularization (:func:`regularize`): by default the tree of least
         accumulated orientation variance (:func:`lagolib.topology.min_uncertainty_tree`); the
@@ -596,7 +621,7 @@ def lago(graph, tree="min_uncertainty", anchor=None, *, margin_warning=0.1, back
     >>> import numpy as np
     >>> from lagolib import simulate
     >>> sim = simulate.loop_world(laps=3, poses_per_lap=20, noiseless=True)
-    >>> res = lago(sim.graph)
+    >>> res = lago(sim.graph, "odometric")
     >>> res.regularization.n_regularized
     40
     >>> bool(np.allclose(res.poses, sim.truth, atol=1e-9))
@@ -604,7 +629,7 @@ def lago(graph, tree="min_uncertainty", anchor=None, *, margin_warning=0.1, back
     """
     t0 = time.perf_counter()
     if not isinstance(graph, PoseGraph):
-        raise TypeError(f"lago needs a PoseGraph; got {type(graph).__name__}")
+        raise OptionTypeError(f"lago needs a PoseGraph; got {type(graph).__name__}")
     margin_warning = check_real(margin_warning, "margin_warning", "lago", minimum=0.0, maximum=0.5)
     check_choice(backend, "backend", "lago", ("auto", "qdldl", "scipy"))
     root = _anchor_row(graph, anchor)

@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, dijkstra
 
-from .errors import GraphError
+from .errors import GraphError, OptionError, OptionTypeError
 from .graph import vertex_rows
 
 __all__ = [
@@ -403,13 +403,21 @@ def spanning_tree(graph, tree="odometric", anchor=None):
                 f"{tree.in_tree.size} edges; this one has {graph.n} and {graph.m}"
             )
         return tree
+    if not isinstance(tree, str):
+        raise OptionTypeError(
+            f"spanning_tree: tree must be a name ({', '.join(map(repr, TREES))}) or a "
+            f"SpanningTree; got {type(tree).__name__}"
+        )
     if tree == "odometric":
         return odometric_tree(graph, anchor)
     if tree == "bfs":
         return bfs_tree(graph, anchor)
     if tree == "min_uncertainty":
         return min_uncertainty_tree(graph, anchor)
-    raise ValueError(f"tree must be one of {TREES} or a SpanningTree; got {tree!r}")
+    raise OptionError(
+        f"spanning_tree: tree must be one of {', '.join(map(repr, TREES))} or a SpanningTree; "
+        f"got {tree!r}"
+    )
 
 
 def orientation_variances(graph):
@@ -434,8 +442,9 @@ def min_uncertainty_tree(graph, anchor=None):
     rounds ``𝒞 δ / 2π`` around each chord's fundamental circuit; the noise in that sum is the
     noise accumulated along the circuit, so trees with short, precise paths round correctly on
     graphs where the odometric tree's long paths pass ±π.  With equal variances it is a
-    breadth-first tree (fewest edges to the anchor).  Among parallel edges the most precise one is
-    used.
+    breadth-first tree (fewest edges to the anchor).  Ties — several parents on equally precise
+    paths — go to the parent that comes first in breadth-first order, so with equal variances
+    this *is* :func:`bfs_tree`.  Among parallel edges the most precise one is used.
 
     Parameters
     ----------
@@ -477,9 +486,9 @@ def min_uncertainty_tree(graph, anchor=None):
     order = np.lexsort((k, var[k], a[k] * n + b[k]))
     k = k[order]
     key = a[k] * n + b[k]
-    keep = np.ones(k.size, dtype=bool)
-    keep[1:] = key[1:] != key[:-1]
-    best = k[keep]
+    uniq = np.ones(k.size, dtype=bool)
+    uniq[1:] = key[1:] != key[:-1]
+    best, best_key = k[uniq], key[uniq]
     w = np.maximum(var[best], tiny)  # csgraph drops explicit zeros
     adj = sp.csr_matrix(
         (
@@ -491,11 +500,32 @@ def min_uncertainty_tree(graph, anchor=None):
     dist, pred = dijkstra(adj, directed=True, indices=root, return_predecessors=True)
     if not np.all(np.isfinite(dist)):
         raise _disconnected(graph)
-    child = np.flatnonzero(np.arange(n) != root)
-    p = pred[child]
-    pair = np.minimum(p, child) * n + np.maximum(p, child)
-    ukey = key[keep]
-    tree = best[np.searchsorted(ukey, pair)]
+    # Ties: many parents can lie on a shortest path (equal variances make every shortest-hop
+    # tree a minimum-uncertainty tree).  Take the parent that comes first in breadth-first order,
+    # as bfs_tree does; with equal variances the two trees coincide.
+    bfs = breadth_first_order(adj, root, directed=False, return_predecessors=False)
+    pos = np.empty(n, dtype=np.int64)
+    pos[bfs] = np.arange(n)
+    src = np.concatenate([a[best], b[best]])
+    dst = np.concatenate([b[best], a[best]])
+    via = np.concatenate([best, best])
+    length = np.concatenate([w, w])
+    reach = dist[src] + length
+    tight = (dst != root) & (dist[src] < dist[dst]) & (reach <= dist[dst] * (1 + 1e-12))
+    src, dst, via = src[tight], dst[tight], via[tight]
+    first = np.lexsort((pos[src], dst))
+    src, dst, via = src[first], dst[first], via[first]
+    keep = np.ones(dst.size, dtype=bool)
+    keep[1:] = dst[1:] != dst[:-1]
+    parent_edge = np.full(n, -1, dtype=np.int64)
+    parent_edge[dst[keep]] = via[keep]
+    # a vertex whose variance step underflowed against its distance keeps Dijkstra's parent
+    child = np.flatnonzero((np.arange(n) != root) & (parent_edge < 0))
+    if child.size:
+        p = pred[child]
+        pair = np.minimum(p, child) * n + np.maximum(p, child)
+        parent_edge[child] = best[np.searchsorted(best_key, pair)]
+    tree = parent_edge[np.arange(n) != root]
     return _rooted(graph, "min_uncertainty", np.sort(tree), root)
 
 

@@ -475,3 +475,15 @@ def test_margin_warning_can_be_turned_off_and_is_validated(noisy_manhattan):
             L.lago(g, margin_warning=bad)
     with pytest.raises(ValueError, match="tree"):
         L.lago(g, "kruskal")
+
+
+@pytest.mark.parametrize("seed", [1, 4])
+def test_with_equal_variances_the_min_uncertainty_tree_is_the_bfs_tree(seed):
+    """Every shortest-hop tree is then a minimum-uncertainty tree; ties go as in BFS."""
+    for sim in (
+        simulate.loop_world(laps=4, poses_per_lap=40, sigma_theta=0.3, rng=seed),
+        simulate.manhattan_world(n_poses=600, extent=8, rng=seed),
+    ):
+        a, b = T.min_uncertainty_tree(sim.graph), T.bfs_tree(sim.graph)
+        np.testing.assert_array_equal(a.edges, b.edges)
+        np.testing.assert_array_equal(a.parent, b.parent)
