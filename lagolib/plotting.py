@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .checks import check_bool
+from .errors import OptionError
+
 __all__ = [
     "plot_graph",
     "plot_spanning_tree",
@@ -30,20 +33,107 @@ def _segments(poses, edges):
     return np.stack([poses[edges[:, 0], :2], poses[edges[:, 1], :2]], axis=1)
 
 
-def _finish(ax, title):
+_LEGEND_PLACES = ("best", "outside", "below")
+
+
+def _check_legend(legend, where):
+    """``legend`` is one of :data:`_LEGEND_PLACES`, None or False (else OptionError)."""
+    if legend is None or legend is False:
+        return legend
+    if isinstance(legend, str) and legend in _LEGEND_PLACES:
+        return legend
+    raise OptionError(
+        f"{where}: legend must be one of {', '.join(map(repr, _LEGEND_PLACES))}, None or False; "
+        f"got {legend!r}"
+    )
+
+
+def _legend(ax, legend):
+    """Place the legend: inside (``"best"``), right of the axes (``"outside"``), under the
+    x label (``"below"``), or none (``None``/``False``)."""
+    if legend is None or legend is False:
+        return
+    if legend == "outside":
+        ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize="small")
+    elif legend == "below":
+        from matplotlib.transforms import ScaledTranslation
+
+        # a fixed 0.5 inch under the axes clears the tick labels and the x label at any size
+        below = ax.transAxes + ScaledTranslation(0.0, -0.5, ax.figure.dpi_scale_trans)
+        ax.legend(
+            loc="upper center",
+            bbox_to_anchor=(0.5, 0.0),
+            bbox_transform=below,
+            ncol=2,
+            fontsize="small",
+        )
+    else:
+        ax.legend(loc="best", fontsize="small")
+
+
+def _finish(ax, title, legend="best"):
     """Equal-aspect map axes in metres, with a legend and an optional title."""
     ax.autoscale_view()
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.legend(loc="best", fontsize="small")
+    _legend(ax, legend)
     if title:
         ax.set_title(title)
     return ax
 
 
+def _arrowheads(ax, poses, edges, color, *, at=0.7, zorder=3):
+    """One arrowhead per edge, tip at fraction ``at`` of the way from tail to head.
+
+    The heads have a fixed size on the page (0.15 inch), whatever the data scale, and point from
+    the tail pose ``edges[:, 0]`` to the head pose ``edges[:, 1]``.  One
+    :class:`matplotlib.quiver.Quiver` for all of them (``X, Y`` the tips, ``U, V`` the unit
+    directions); edges of zero length get no head.
+
+    Returns
+    -------
+    matplotlib.quiver.Quiver or None
+    """
+    tail, head = poses[edges[:, 0], :2], poses[edges[:, 1], :2]
+    d = head - tail
+    length = np.hypot(d[:, 0], d[:, 1])
+    ok = length > 0
+    if not ok.any():
+        return None
+    u = d[ok] / length[ok, None]
+    tip = tail[ok] + at * d[ok]
+    return ax.quiver(
+        tip[:, 0],
+        tip[:, 1],
+        u[:, 0],
+        u[:, 1],
+        color=color,
+        angles="xy",
+        pivot="tip",
+        units="inches",
+        scale_units="inches",
+        scale=1 / 0.15,
+        width=0.02,
+        headwidth=4.5,
+        headlength=5,
+        headaxislength=4.5,
+        zorder=zorder,
+        label="_nolegend_",
+    )
+
+
 def plot_graph(
-    graph, poses=None, ax=None, *, odometry_kw=None, loop_kw=None, vertices=False, title=None
+    graph,
+    poses=None,
+    ax=None,
+    *,
+    odometry_kw=None,
+    loop_kw=None,
+    vertices=False,
+    arrows=False,
+    legend="best",
+    title=None,
 ):
     """Draw a pose graph: odometric edges solid, loop closures dotted (as in Carlone et al. Fig. 1).
 
@@ -57,14 +147,28 @@ def plot_graph(
         Extra LineCollection properties for the two kinds of edge.
     vertices : bool
         Also mark every vertex with a dot.
+    arrows : bool
+        Draw an arrowhead on every edge, pointing from its tail ``i`` to its head ``j`` (the
+        direction of the measurement ``z_ij`` and of the incidence matrix's ``−1 → +1``).  For
+        small graphs: one head per edge.
+    legend : {"best", "outside", "below"} or None
+        Legend inside the axes where matplotlib finds room, right of the axes, under the x label,
+        or none.
     title : str, optional
 
     Returns
     -------
     matplotlib.axes.Axes
+
+    Raises
+    ------
+    OptionError, OptionTypeError
+        ``legend`` is not one of the places above, or ``arrows`` is not a bool.
     """
     from matplotlib.collections import LineCollection
 
+    _check_legend(legend, "plot_graph")
+    arrows = check_bool(arrows, "arrows", "plot_graph")
     ax = _axes(ax)
     poses = graph.poses if poses is None else np.asarray(poses, dtype=float)
     odo = graph.odometric
@@ -80,13 +184,25 @@ def plot_graph(
     }
     style.update(loop_kw or {})
     ax.add_collection(LineCollection(_segments(poses, graph.edges[~odo]), **style))
+    if arrows:
+        _arrowheads(ax, poses, graph.edges[odo], (odometry_kw or {}).get("colors", "tab:blue"))
+        _arrowheads(ax, poses, graph.edges[~odo], (loop_kw or {}).get("colors", "tab:red"))
     if vertices:
         ax.plot(poses[:, 0], poses[:, 1], ".", color="k", markersize=2)
-    return _finish(ax, title)
+    return _finish(ax, title, legend)
 
 
 def plot_spanning_tree(
-    graph, tree, poses=None, ax=None, *, highlight=None, labels=False, title=None
+    graph,
+    tree,
+    poses=None,
+    ax=None,
+    *,
+    highlight=None,
+    labels=False,
+    arrows=False,
+    legend="best",
+    title=None,
 ):
     """Draw a spanning tree and its chords (Carlone et al. 2011, §IV-E).
 
@@ -103,14 +219,27 @@ def plot_spanning_tree(
         Edge indices to emphasize.
     labels : bool
         Write vertex rows at the vertices and edge indices at the edge midpoints (small graphs).
+    arrows : bool
+        Draw an arrowhead on every edge, from its tail ``i`` to its head ``j``: the direction in
+        which a fundamental circuit's sign is counted (+1 along the edge, −1 against it).  For
+        small graphs.
+    legend : {"best", "outside", "below"} or None
+        Legend inside the axes, right of them, under the x label, or none.
     title : str, optional
 
     Returns
     -------
     matplotlib.axes.Axes
+
+    Raises
+    ------
+    OptionError, OptionTypeError
+        ``legend`` is not one of the places above, or ``arrows`` is not a bool.
     """
     from matplotlib.collections import LineCollection
 
+    _check_legend(legend, "plot_spanning_tree")
+    arrows = check_bool(arrows, "arrows", "plot_spanning_tree")
     ax = _axes(ax)
     poses = graph.poses if poses is None else np.asarray(poses, dtype=float)
     t = np.asarray(tree.in_tree, dtype=bool)
@@ -142,6 +271,9 @@ def plot_spanning_tree(
                 label=f"highlighted ({h.size})",
             )
         )
+    if arrows:
+        _arrowheads(ax, poses, graph.edges[t], "tab:blue")
+        _arrowheads(ax, poses, graph.edges[~t], "tab:orange")
     ax.plot(poses[:, 0], poses[:, 1], "o", color="k", markersize=3 if labels else 1.5)
     ax.plot(*poses[tree.root, :2], "s", color="tab:green", markersize=8, label="root (anchor)")
     if labels:
@@ -150,10 +282,10 @@ def plot_spanning_tree(
         mid = 0.5 * (poses[graph.edges[:, 0], :2] + poses[graph.edges[:, 1], :2])
         for k, (x, y) in enumerate(mid):
             ax.annotate(f"e{k}", (x, y), fontsize=7, color="tab:gray", ha="center")
-    return _finish(ax, title)
+    return _finish(ax, title, legend)
 
 
-def plot_trajectories(trajectories, ax=None, *, title=None, **kw):
+def plot_trajectories(trajectories, ax=None, *, title=None, legend="best", **kw):
     """Draw several trajectories for comparison.
 
     Parameters
@@ -162,6 +294,8 @@ def plot_trajectories(trajectories, ax=None, *, title=None, **kw):
         Label to poses (a PoseGraph contributes its ``poses``), drawn as lines in id order.
     ax : matplotlib.axes.Axes, optional
     title : str, optional
+    legend : {"best", "outside", "below"} or None
+        Legend inside the axes, right of them, under the x label, or none.
     **kw
         Passed to every ``ax.plot`` call.
 
@@ -169,6 +303,7 @@ def plot_trajectories(trajectories, ax=None, *, title=None, **kw):
     -------
     matplotlib.axes.Axes
     """
+    _check_legend(legend, "plot_trajectories")
     ax = _axes(ax)
     for label, value in trajectories.items():
         if hasattr(value, "poses") and hasattr(value, "order"):
@@ -179,7 +314,7 @@ def plot_trajectories(trajectories, ax=None, *, title=None, **kw):
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.legend(loc="best", fontsize="small")
+    _legend(ax, legend)
     if title:
         ax.set_title(title)
     return ax
