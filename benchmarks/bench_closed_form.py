@@ -26,7 +26,7 @@ from lagolib.lago import lago
 def main():
     print(
         f"{'dataset':<10} {'n':>6} {'m':>6} {'GN ms':>8} {'closed ms':>9} {'ratio':>6} "
-        f"{'GN it':>5} {'Newton it':>9} {'max |dp|':>9} {'B/edge':>7}"
+        f"{'GN it':>5} {'Newton it':>9} {'max |dp|':>9} {'B/edge':>7} {'fallback':>8}"
     )
     for name in ("intel", "m3500", "city10000"):
         graph = datasets.load(name)
@@ -44,7 +44,7 @@ def main():
         print(
             f"{name:<10} {graph.n:>6} {graph.m:>6} {1e3 * t_gn:>8.1f} {1e3 * t_cf:>9.1f} "
             f"{t_cf / t_gn:>6.2f} {gn.iterations:>5} {res.iterations:>9} {diff:>9.1e} "
-            f"{peak / graph.m:>7.0f}"
+            f"{peak / graph.m:>7.0f} {str(res.fallback):>8}"
         )
 
 

@@ -41,7 +41,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from . import se2
-from .errors import ConvergenceError, GraphError
+from .checks import check_choice, check_int, check_real
+from .errors import ConvergenceError, GraphError, OptionError, OptionTypeError
 from .graph import PoseGraph, _numeric, vertex_rows
 from .lago import lago
 from .linalg import SparseCholesky, solve_spd
@@ -280,7 +281,7 @@ def network(graph):
     (159, 279, 120)
     """
     if not isinstance(graph, PoseGraph):
-        raise TypeError(f"network needs a PoseGraph; got {type(graph).__name__}")
+        raise OptionTypeError(f"network needs a PoseGraph; got {type(graph).__name__}")
     if graph.n < 2:
         raise GraphError("the closed form needs at least two poses (p_0 and one more)")
     rank = graph.order  # node index of every graph row
@@ -348,10 +349,21 @@ def sincos_poses(poses):
     return np.concatenate([p[..., :2], np.cos(p[..., 2:3]), np.sin(p[..., 2:3])], axis=-1)
 
 
-def _graph_poses(graph, poses):
-    poses = graph.poses if poses is None else _numeric(poses, "poses", float)
+def _graph_poses(graph, poses, name="poses"):
+    """``graph.poses`` or ``poses`` as a finite (n, 3) array; GraphError naming the vertex."""
+    if poses is None:
+        return graph.poses
+    if np.iscomplexobj(poses):
+        raise GraphError(f"{name} must be real; got a complex array")
+    poses = _numeric(poses, name, float)
     if poses.shape != (graph.n, 3):
-        raise GraphError(f"poses must have shape ({graph.n}, 3); got {poses.shape}")
+        raise GraphError(f"{name} must have shape ({graph.n}, 3); got {poses.shape}")
+    bad = np.flatnonzero(~np.all(np.isfinite(poses), axis=1))
+    if bad.size:
+        raise GraphError(
+            f"{name}: pose of vertex id {graph.ids[bad[0]]} is not finite: "
+            f"{poses[bad[0]].tolist()} ({bad.size} such poses); give every pose finite values"
+        )
     return poses
 
 
@@ -494,9 +506,17 @@ def optimize_sincos(graph, initial=None, *, fixed=None, max_iterations=100, tol=
     -------
     SincosOptimum
     """
-    x = _graph_poses(graph, initial).copy()
+    where = "optimize_sincos"
+    if not isinstance(graph, PoseGraph):
+        raise OptionTypeError(f"{where}: graph must be a PoseGraph; got {type(graph).__name__}")
+    max_iterations = check_int(max_iterations, "max_iterations", where, minimum=0)
+    tol = check_real(tol, "tol", where, minimum=0.0)
+    x = _graph_poses(graph, initial, "initial").copy()
     n = graph.n
-    fixed_row = int(np.argmin(graph.ids)) if fixed is None else int(vertex_rows(graph, [fixed])[0])
+    if fixed is None:
+        fixed_row = int(np.argmin(graph.ids))
+    else:
+        fixed_row = int(vertex_rows(graph, [fixed], f"{where}: fixed")[0])
     free = np.delete(np.arange(n), fixed_row)
     col_of = np.full(n, -1)
     col_of[free] = np.arange(free.size)
@@ -563,13 +583,22 @@ def positions_from_orientations(graph, theta, origin=(0.0, 0.0)):
     -------
     ndarray, shape (graph.n, 2)
     """
+    where = "positions_from_orientations"
     net = graph if isinstance(graph, ClosedFormNetwork) else network(graph)
-    theta = np.asarray(theta, dtype=float)
+    theta = _numeric(theta, f"{where}: theta", float)
     if theta.shape != (net.graph.n,):
-        raise ValueError(f"theta must have shape ({net.graph.n},); got {theta.shape}")
+        raise GraphError(f"{where}: theta must have shape ({net.graph.n},); got {theta.shape}")
+    bad = np.flatnonzero(~np.isfinite(theta))
+    if bad.size:
+        raise GraphError(
+            f"{where}: theta of vertex id {net.graph.ids[bad[0]]} is not finite ({theta[bad[0]]})"
+        )
+    origin = _numeric(origin, f"{where}: origin", float)
+    if origin.shape != (2,) or not np.all(np.isfinite(origin)):
+        raise OptionError(f"{where}: origin must be 2 finite numbers; got {origin.tolist()}")
     theta_nodes = theta[net.vertex]
     local = net.positions(net.t_of(theta_nodes))  # in p_0's frame
-    world = local @ se2.rotation(theta_nodes[0]).T + np.asarray(origin, dtype=float)
+    world = local @ se2.rotation(theta_nodes[0]).T + origin
     out = np.empty((net.graph.n, 2))
     out[net.vertex] = world
     return out
@@ -594,6 +623,17 @@ class ClosedFormResult:
     residuals : list of float
         ``max |F|`` of the stacked equations before each step and at the end.
     network : ClosedFormNetwork
+    start_chi2 : float
+        :func:`sincos_chi2` of the start: the orientations ``t0`` with the positions of the
+        position equations.
+    newton_chi2 : float
+        :func:`sincos_chi2` of the stationary point Newton's method reached.
+    fallback : bool
+        True when Newton's stationary point was worse than the start (a saddle point or a
+        worse minimum) and the result is Gauss–Newton's (:func:`optimize_sincos`) from the start
+        instead; ``t`` and ``rho`` are then those of the Gauss–Newton optimum.
+    reason : str
+        What was returned and why.
     """
 
     poses: np.ndarray
@@ -603,6 +643,10 @@ class ClosedFormResult:
     iterations: int
     residuals: list
     network: ClosedFormNetwork = field(repr=False)
+    start_chi2: float = float("nan")
+    newton_chi2: float = float("nan")
+    fallback: bool = False
+    reason: str = ""
 
     @property
     def chi2(self):
@@ -624,7 +668,24 @@ def _R_times(rho, t):
     return t * np.column_stack([rho, -rho]).ravel()
 
 
-def solve_orthogonality(net, t0, *, rho0=None, tol=1e-10, max_iterations=50):
+IF_WORSE = ("fallback", "raise")
+
+
+def _start_poses(net, t, positions):
+    """Poses (graph rows) of node positions (n + 1, 2) and ``t`` (2n,), ``p_0`` at the origin."""
+    theta = np.concatenate([[0.0], np.arctan2(t[1::2], t[0::2])])
+    poses = np.empty((net.graph.n, 3))
+    poses[net.vertex] = np.column_stack([positions, theta])
+    return poses
+
+
+def _rho_of(net, t):
+    """Least-squares ``ρ`` of ``v(t) = R t``: ``ρ_i = α_i c_i − β_i s_i`` (eq. 36, 44–45)."""
+    v = net.v(t).reshape(net.n, 2)
+    return v[:, 0] * t[0::2] - v[:, 1] * t[1::2]
+
+
+def solve_orthogonality(net, t0, *, rho0=None, tol=1e-10, max_iterations=50, if_worse="fallback"):
     """Solve ``R t = A t + b`` with ``c_i² + s_i² = 1`` (Lodi Rizzini eq. 44–45) by Newton's method.
 
     Unknowns: ``t`` (2n), ``ρ`` (n) and — to keep every matrix sparse — the node positions ``X``
@@ -648,7 +709,15 @@ def solve_orthogonality(net, t0, *, rho0=None, tol=1e-10, max_iterations=50):
         Default: the least-squares ``ρ`` of ``v(t0) = R t0``, ``ρ_i = α_i c_i − β_i s_i``.
     tol : float
         Converged when every equation holds to ``tol`` (metres, and squared unit lengths).
+        Finite, ``>= 0``.
     max_iterations : int
+        ``>= 0``.
+    if_worse : {"fallback", "raise"}
+        Newton's method finds a *stationary* point of χ², which may be a saddle point or a
+        minimum worse than the start.  Its χ² is compared with the start's: when it is larger,
+        ``"fallback"`` returns Gauss–Newton's optimum from the start (:func:`optimize_sincos`,
+        which never increases χ²) with ``fallback=True`` and the reason on the result;
+        ``"raise"`` raises :class:`~lagolib.errors.ConvergenceError`.
 
     Returns
     -------
@@ -658,22 +727,41 @@ def solve_orthogonality(net, t0, *, rho0=None, tol=1e-10, max_iterations=50):
     ------
     ConvergenceError
         When ``max_iterations`` steps do not reach ``tol`` or no step fraction decreases the
-        residual; no result is returned then.
+        residual, or (``if_worse="raise"``) the stationary point is worse than the start; no
+        result is returned then.
     """
+    where = "solve_orthogonality"
+    if not isinstance(net, ClosedFormNetwork):
+        raise OptionTypeError(f"{where}: net must be a ClosedFormNetwork; got {type(net).__name__}")
+    tol = check_real(tol, "tol", where, minimum=0.0)
+    max_iterations = check_int(max_iterations, "max_iterations", where, minimum=0)
+    if_worse = check_choice(if_worse, "if_worse", where, IF_WORSE)
     n = net.n
-    t = np.asarray(t0, dtype=float).copy()
+    t = _numeric(t0, f"{where}: t0", float).copy()
     if t.shape != (2 * n,):
-        raise ValueError(f"t0 must have shape ({2 * n},); got {t.shape}")
+        raise OptionError(f"{where}: t0 must have shape ({2 * n},); got {t.shape}")
     cs = t.reshape(n, 2)
-    t = (cs / np.linalg.norm(cs, axis=1, keepdims=True)).ravel()
+    norm = np.linalg.norm(cs, axis=1, keepdims=True)
+    bad = np.flatnonzero(~(np.isfinite(norm[:, 0]) & (norm[:, 0] > 0)))
+    if bad.size:
+        k = int(bad[0]) + 1  # node k: t0 holds nodes 1..n
+        raise GraphError(
+            f"{where}: t0 of vertex id {net.graph.ids[net.vertex[k]]} (node {k}) is "
+            f"{cs[k - 1].tolist()}; every (c, s) pair must be finite and non-zero"
+        )
+    t = (cs / norm).ravel()
     positions = net.positions(t)  # one solve of the position equations serves X and v(t0)
     X = positions[1:].ravel()
+    start_poses = _start_poses(net, t, positions)
+    start_chi2 = sincos_chi2(net.graph, start_poses)
     if rho0 is None:
         d = positions[net.j] - positions[net.i]
         v = (net.L @ net.t1(t) + net.M @ d.ravel()).reshape(n, 2)  # eq. (36)
         rho = v[:, 0] * t[0::2] - v[:, 1] * t[1::2]
     else:
-        rho = np.asarray(rho0, dtype=float).copy()
+        rho = _numeric(rho0, f"{where}: rho0", float).copy()
+        if rho.shape != (n,) or not np.all(np.isfinite(rho)):
+            raise OptionError(f"{where}: rho0 must be {n} finite numbers; got shape {rho.shape}")
 
     I2 = sp.identity(2)
     N0 = net._N0
@@ -744,13 +832,47 @@ def solve_orthogonality(net, t0, *, rho0=None, tol=1e-10, max_iterations=50):
         norms.append(float(np.max(np.abs(r))))
 
     positions = np.vstack([np.zeros((1, 2)), X.reshape(n, 2)])
-    theta = np.concatenate([[0.0], np.arctan2(t[1::2], t[0::2])])
-    poses = np.empty((net.graph.n, 3))
-    poses[net.vertex] = np.column_stack([positions, theta])
-    return ClosedFormResult(poses, t, rho, positions, it, norms, net)
+    poses = _start_poses(net, t, positions)
+    newton_chi2 = sincos_chi2(net.graph, poses)
+    if not newton_chi2 > start_chi2 * (1 + 1e-12) + 1e-300:
+        reason = (
+            f"stationary point of the orthogonality condition: chi2 {newton_chi2:.10g} "
+            f"(start {start_chi2:.10g})"
+        )
+        return ClosedFormResult(
+            poses, t, rho, positions, it, norms, net, start_chi2, newton_chi2, False, reason
+        )
+    why = (
+        f"Newton on the orthogonality condition converged in {it} iterations to a stationary "
+        f"point with chi2 {newton_chi2:.10g}, worse than its start's {start_chi2:.10g}: a saddle "
+        "point or a worse minimum of eq. (6)"
+    )
+    if if_worse == "raise":
+        raise ConvergenceError(
+            f"{why}; start from a better initial guess (e.g. initial='lago') or use "
+            "if_worse='fallback'",
+            iterations=it,
+            residuals=norms,
+        )
+    gn = optimize_sincos(net.graph, start_poses, fixed=int(net.graph.ids[net.vertex[0]]))
+    poses = gn.poses.copy()
+    t = net.t_of(poses[net.vertex, 2])
+    return ClosedFormResult(
+        poses,
+        t,
+        _rho_of(net, t),
+        poses[net.vertex, :2] - poses[net.vertex[0], :2],
+        it,
+        norms,
+        net,
+        start_chi2,
+        newton_chi2,
+        True,
+        f"{why}; returned Gauss-Newton's optimum from the start instead (chi2 {gn.chi2:.10g})",
+    )
 
 
-def closed_form(graph, initial="lago", *, tol=1e-10, max_iterations=50):
+def closed_form(graph, initial="lago", *, tol=1e-10, max_iterations=50, if_worse="fallback"):
     """The stationary point of Lodi Rizzini's χ² (``Ω = I_4``) near ``initial``, via eq. (44).
 
     Builds the network (:func:`network`), takes the orientations of ``initial`` as ``t0`` and
@@ -762,8 +884,9 @@ def closed_form(graph, initial="lago", *, tol=1e-10, max_iterations=50):
     initial : {"lago", "odometry"} or array_like of shape (graph.n, 3)
         Where the orientations start: LAGO's estimate (:func:`lagolib.lago.lago`), the odometry
         guess, or given poses.
-    tol, max_iterations
-        See :func:`solve_orthogonality`.
+    tol, max_iterations, if_worse
+        See :func:`solve_orthogonality`: the result is never worse than its start unless it
+        says so (``fallback``, ``reason``).
 
     Returns
     -------
@@ -778,16 +901,20 @@ def closed_form(graph, initial="lago", *, tol=1e-10, max_iterations=50):
     >>> res.iterations <= 6, bool(np.abs(res.gradient).max() < 1e-8)
     (True, True)
     """
+    where = "closed_form"
     net = network(graph)
+    tol = check_real(tol, "tol", where, minimum=0.0)
+    max_iterations = check_int(max_iterations, "max_iterations", where, minimum=0)
+    if_worse = check_choice(if_worse, "if_worse", where, IF_WORSE)
     if isinstance(initial, str):
-        if initial == "lago":
-            guess = lago(graph).poses
-        elif initial == "odometry":
-            guess = graph.odometry_guess()
-        else:
-            raise ValueError(f"initial must be 'lago', 'odometry' or poses; got {initial!r}")
+        initial = check_choice(initial, "initial", where, ("lago", "odometry"))
+        guess = lago(graph).poses if initial == "lago" else graph.odometry_guess()
     else:
-        guess = _graph_poses(graph, initial)
+        guess = _graph_poses(graph, initial, "initial")
     return solve_orthogonality(
-        net, net.t_of(guess[net.vertex, 2]), tol=tol, max_iterations=max_iterations
+        net,
+        net.t_of(guess[net.vertex, 2]),
+        tol=tol,
+        max_iterations=max_iterations,
+        if_worse=if_worse,
     )

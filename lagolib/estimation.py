@@ -29,21 +29,43 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .linalg import SparseCholesky
+from .checks import check_choice
+from .errors import OptionError, OptionTypeError
+from .linalg import BACKENDS, SparseCholesky
 
 __all__ = ["BLUE", "blue", "information_form", "propagate_covariance", "joint_information"]
 
 
-def _as_information(information, size):
+def _real_array(value, name, where):
+    """``np.asarray(value, float)``, refusing complex and non-numeric input (naming ``name``)."""
+    if np.iscomplexobj(value.data if sp.issparse(value) else value):
+        raise OptionTypeError(f"{where}: {name} must be real; got complex values")
+    try:
+        return sp.csr_matrix(value, dtype=float) if sp.issparse(value) else np.asarray(value, float)
+    except (TypeError, ValueError) as exc:
+        raise OptionTypeError(f"{where}: {name} must be a real array: {exc}") from None
+
+
+def _check_finite(a, name, where):
+    data = a.data if sp.issparse(a) else a
+    if not np.all(np.isfinite(data)):
+        raise OptionError(f"{where}: {name} has non-finite entries (nan or inf)")
+    return a
+
+
+def _as_information(information, size, where="information_form"):
     """A sparse (size, size) information matrix from a matrix or from its diagonal."""
+    information = _check_finite(
+        _real_array(information, "information", where), "information", where
+    )
     if sp.issparse(information):
-        W = sp.csr_matrix(information)
+        W = information
     else:
-        information = np.asarray(information, dtype=float)
         W = sp.diags(information) if information.ndim == 1 else sp.csr_matrix(information)
     if W.shape != (size, size):
-        raise ValueError(
-            f"the information matrix must have shape ({size}, {size}) to match z; got {W.shape}"
+        raise OptionError(
+            f"{where}: the information matrix must have shape ({size}, {size}) (or ({size},) for "
+            f"its diagonal) to match z; got {W.shape}"
         )
     return W
 
@@ -66,11 +88,15 @@ def information_form(H, z, information):
     eta : ndarray, shape (N,)
         Information vector ``H Ω z``.
     """
-    H = sp.csr_matrix(H)
-    z = np.asarray(z, dtype=float)
+    where = "information_form"
+    H = _real_array(H, "H", where)
+    H = _check_finite(H if sp.issparse(H) else sp.csr_matrix(np.atleast_2d(H)), "H", where)
+    z = _check_finite(_real_array(z, "z", where), "z", where)
     if z.shape != (H.shape[1],):
-        raise ValueError(f"z must have shape ({H.shape[1]},) to match H {H.shape}; got {z.shape}")
-    W = _as_information(information, H.shape[1])
+        raise OptionError(
+            f"{where}: z must have shape ({H.shape[1]},) to match H {H.shape}; got {z.shape}"
+        )
+    W = _as_information(information, H.shape[1], where)
     HW = H @ W
     return sp.csc_matrix(HW @ H.T), HW @ z
 
@@ -106,7 +132,16 @@ class BLUE:
         ndarray, shape (k, k)
         """
         N = self.information.shape[0]
-        rows = np.arange(N) if rows is None else np.atleast_1d(np.asarray(rows, dtype=np.int64))
+        if rows is None:
+            rows = np.arange(N)
+        else:
+            rows = np.atleast_1d(np.asarray(rows))
+            if rows.dtype.kind not in "iu" or rows.ndim != 1:
+                raise OptionTypeError(f"BLUE.covariance: rows must be integers; got {rows!r}")
+            if rows.size and (rows.min() < -N or rows.max() >= N):
+                raise OptionError(
+                    f"BLUE.covariance: rows must lie in [0, {N}); got {rows.min()}..{rows.max()}"
+                )
         E = np.zeros((N, rows.size))
         E[rows, np.arange(rows.size)] = 1.0
         X = self.factor.solve(E)
@@ -135,6 +170,8 @@ def blue(H, z, information, *, backend="auto"):
 
     Raises
     ------
+    OptionError, OptionTypeError
+        Non-finite, complex or mis-shaped ``H``, ``z`` or ``information``; unknown ``backend``.
     NotPositiveDefiniteError
         If ``H Ω H^T`` is singular: ``x`` is not observable from ``z`` (for orientations: the
         graph is disconnected or no node is anchored, Prop. 1).
@@ -148,6 +185,7 @@ def blue(H, z, information, *, backend="auto"):
     >>> est.estimate, est.covariance()
     (array([3.]), array([[0.33333333]]))
     """
+    backend = check_choice(backend, "backend", "blue", ("auto",) + BACKENDS)
     info, eta = information_form(H, z, information)
     factor = SparseCholesky(info, backend)
     return BLUE(factor.solve(eta), info, factor)

@@ -28,6 +28,7 @@ have different optima; choose ``"log"`` to reproduce GTSAM's numbers.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -35,9 +36,27 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import se2
-from .errors import GaugeError, GraphError, NotPositiveDefiniteError
-from .graph import ERRORS, PoseGraph, _check_error, _numeric, chi2, edge_errors, vertex_rows
-from .linalg import SparseCholesky, pcg
+from .checks import check_bool, check_choice, check_int, check_real
+from .errors import (
+    ConvergenceError,
+    GaugeError,
+    GraphError,
+    NotPositiveDefiniteError,
+    OptionError,
+    OptionTypeError,
+)
+from .graph import (
+    ERRORS,
+    PoseGraph,
+    _check_error,
+    _numeric,
+    chi2,
+    describe_bad_information,
+    edge_errors,
+    first_bad_information,
+    vertex_rows,
+)
+from .linalg import BACKENDS, SparseCholesky, pcg
 
 __all__ = [
     "Prior",
@@ -169,15 +188,17 @@ class Prior:
     information: tuple = ((1e6, 0.0, 0.0), (0.0, 1e6, 0.0), (0.0, 0.0, 1e8))
 
     def __post_init__(self):
+        object.__setattr__(self, "vertex", check_int(self.vertex, "vertex", "Prior"))
         mean = _numeric(self.mean, "Prior mean", float)
         info = _numeric(self.information, "Prior information", float)
         if mean.shape != (3,) or not np.all(np.isfinite(mean)):
             raise GraphError(f"Prior mean must be 3 finite numbers; got {self.mean!r}")
         if info.shape != (3, 3) or not np.all(np.isfinite(info)):
             raise GraphError(f"Prior information must be a finite 3x3 matrix; got {info.tolist()}")
-        if not np.allclose(info, info.T, rtol=1e-12, atol=0) or np.linalg.eigvalsh(info)[0] <= 0:
+        if first_bad_information(info[None], rtol=1e-12) is not None:  # the edges' rules
             raise GraphError(
-                f"Prior information must be symmetric positive definite; got {info.tolist()}"
+                f"Prior on vertex id {self.vertex}: information must be symmetric positive "
+                f"definite and usable in float64: {describe_bad_information(info)}"
             )
         object.__setattr__(self, "mean", tuple(mean.tolist()))
         object.__setattr__(self, "information", tuple(map(tuple, info.tolist())))
@@ -186,8 +207,8 @@ class Prior:
     def from_sigmas(cls, vertex, mean=(0.0, 0.0, 0.0), sigmas=(1e-3, 1e-3, 1e-4)):
         """A prior with diagonal covariance ``diag(sigmas)^2``."""
         sig = _numeric(sigmas, "Prior sigmas", float)
-        if sig.shape != (3,) or not np.all(sig > 0):
-            raise GraphError(f"Prior sigmas must be 3 positive numbers; got {sigmas!r}")
+        if sig.shape != (3,) or not np.all((sig > 0) & np.isfinite(sig)):
+            raise GraphError(f"Prior sigmas must be 3 finite positive numbers; got {sigmas!r}")
         return cls(vertex, mean, np.diag(1.0 / sig**2))
 
 
@@ -199,7 +220,9 @@ def _as_priors(prior):
     priors = tuple(prior)
     for p in priors:
         if not isinstance(p, Prior):
-            raise TypeError(f"prior must be a Prior or a sequence of Prior; got {type(p).__name__}")
+            raise OptionTypeError(
+                f"prior must be a Prior or a sequence of Prior; got {type(p).__name__}"
+            )
     return priors
 
 
@@ -567,20 +590,189 @@ class OptimizeResult:
         )
 
 
-def _initial(graph, initial):
-    x = _numeric(initial, "initial", float)
+def _initial(graph, initial, name="initial"):
+    """``initial`` as a finite (n, 3) float array (a copy); GraphError naming the vertex if not."""
+    x = _numeric(initial, name, float)
     if x.shape != (graph.n, 3):
-        raise GraphError(f"initial must have shape ({graph.n}, 3); got {x.shape}")
+        raise GraphError(f"{name} must have shape ({graph.n}, 3); got {x.shape}")
     bad = np.flatnonzero(~np.all(np.isfinite(x), axis=1))
     if bad.size:
         raise GraphError(
-            f"initial guess of vertex id {graph.ids[bad[0]]} is not finite: {x[bad[0]].tolist()} "
-            f"({bad.size} such poses); give every pose a finite initial guess"
+            f"{name}: initial guess of vertex id {graph.ids[bad[0]]} is not finite: "
+            f"{x[bad[0]].tolist()} ({bad.size} such poses); give every pose a finite initial guess"
         )
     return x.copy()
 
 
 METHODS = ("gn", "lm")
+LINEAR_SOLVERS = ("cholesky", "pcg")
+
+#: LM gives up when its damping exceeds this (GTSAM's ``lambdaUpperBound`` is 1e5 x larger).
+LAMBDA_MAX = 1e10
+#: LM's damping never drops below this after a successful step.
+LAMBDA_MIN = 1e-12
+#: Trials (step halvings, damping increases) per iteration at most.  Neither rule can reach it
+#: (halving a float reaches 0 after 1075 steps, ``lambda *= 10`` passes ``LAMBDA_MAX`` from the
+#: smallest positive float in 334); it turns any future bug into an error instead of a hang.
+_MAX_TRIALS = 4096
+
+
+class _GaussNewtonSteps:
+    """Gauss–Newton step control: the step ``dx`` of ``H dx = -b``, halved while it fails.
+
+    ``H dx = -b`` is solved once per iteration; each halving only rescales ``dx``.  When no
+    fraction down to ``2^-max_backtracks`` decreases the objective the iteration stops (and
+    :func:`optimize` keeps the best iterate).
+    """
+
+    method = "gn"
+
+    def __init__(self, max_backtracks):
+        self.max_backtracks = max_backtracks
+        self.alpha, self._dx = 1.0, None
+
+    def begin(self):
+        """A new iteration: a new ``H`` and ``b``, the full step again."""
+        self.alpha, self._dx = 1.0, None
+
+    def step(self, H, b, solve, system):
+        """``alpha dx`` with ``H dx = -b`` (lecture notes, "Algorithm" line 4)."""
+        if self._dx is None:
+            self._dx = solve(H, -b)
+        return self.alpha * self._dx
+
+    def reject(self):
+        """The trial did not decrease the objective: halve; returns why to give up, or None."""
+        self.alpha *= 0.5
+        if self.alpha < 0.5**self.max_backtracks:
+            return (
+                f"the Gauss-Newton step increases the error even when halved "
+                f"{self.max_backtracks} times; returned the best iterate (try method='lm')"
+            )
+        return None
+
+    def accept(self):
+        """The trial decreased the objective; returns ``(lambda, fraction)`` to record."""
+        return 0.0, self.alpha
+
+
+class _LevenbergMarquardtDamping:
+    """Levenberg–Marquardt step control: solve ``(H + lambda I) dx = -b``.
+
+    ``lambda`` is divided by 10 after a step that decreases the objective (not below
+    ``LAMBDA_MIN``) and multiplied by 10 after one that does not or when ``H + lambda I`` cannot
+    be factored; above ``LAMBDA_MAX`` LM gives up.  ``lambda`` starts finite and positive
+    (:func:`optimize` checks it), so it passes ``LAMBDA_MAX`` after finitely many increases.
+    """
+
+    method = "lm"
+
+    def __init__(self, lambda_initial):
+        if not (math.isfinite(lambda_initial) and lambda_initial > 0):  # the loop's guarantee
+            raise OptionError(f"lambda_initial must be finite and > 0; got {lambda_initial!r}")
+        self.lam = float(lambda_initial)
+
+    def begin(self):
+        """A new iteration: the damping carries over."""
+
+    def step(self, H, b, solve, system):
+        """``dx`` with ``(H + lambda I) dx = -b``, raising ``lambda`` until it can be factored."""
+        while True:  # at most log10(LAMBDA_MAX / lambda) + 1 passes
+            try:
+                return solve(system.damped(H, self.lam), -b)
+            except NotPositiveDefiniteError:
+                if not self.lam < LAMBDA_MAX:
+                    raise
+                self.lam *= 10.0
+
+    def reject(self):
+        """The trial did not decrease the objective: ``lambda *= 10``; why to give up, or None."""
+        self.lam *= 10.0
+        if self.lam > LAMBDA_MAX:
+            return f"LM damping exceeded {LAMBDA_MAX:.0e} without decreasing the error"
+        return None
+
+    def accept(self):
+        """The trial decreased the objective: ``lambda /= 10``; returns ``(lambda, fraction)``."""
+        used = self.lam
+        self.lam = max(self.lam / 10.0, LAMBDA_MIN)
+        return used, 1.0
+
+
+class _LinearSolver:
+    """``solve(H, rhs)``: sparse Cholesky (one symbolic analysis, refactored) or PCG."""
+
+    def __init__(self, kind, backend):
+        self.kind, self.backend = kind, backend
+        self.factor = None
+        self.iterations = []  # PCG iterations per solve
+
+    def __call__(self, H, rhs):
+        if self.kind == "pcg":
+            out = pcg(H, rhs, preconditioner="block_jacobi", rtol=1e-10, check=False)
+            self.iterations.append(out.iterations)
+            return out.x
+        if self.factor is None:
+            self.factor = SparseCholesky(H, self.backend, check=False)
+        else:
+            self.factor.refactor(H)
+        return self.factor.solve(rhs)
+
+
+class _Trace:
+    """What :func:`optimize` records — χ² history, steps, damping, timings — and prints."""
+
+    def __init__(self, method, verbose):
+        self.method, self.verbose = method, verbose
+        self.history, self.steps, self.lambdas, self.fractions = [], [], [], []
+        self.timings = {"assembly": [], "solve": [], "evaluation": []}
+        self._pending = dict.fromkeys(self.timings, 0.0)  # charged to the next accepted step
+
+    @property
+    def iterations(self):
+        return len(self.steps)
+
+    def timed(self, key, fn, *args):
+        """``fn(*args)``, its seconds charged to ``key`` of the next accepted step."""
+        t = time.perf_counter()
+        out = fn(*args)
+        self._pending[key] += time.perf_counter() - t
+        return out
+
+    def start(self, chi):
+        self.history.append(chi)
+        if self.verbose:
+            print(f"iter {0:3d}  chi2 {chi:.10g}")
+
+    def accept(self, chi_old, chi, step, lam, alpha, linear_iterations):
+        """Record an accepted step; returns its relative decrease of the objective."""
+        decrease = (chi_old - chi) / chi_old
+        self.history.append(chi)
+        self.steps.append(float(np.max(np.abs(step))) if step.size else 0.0)
+        self.lambdas.append(lam)
+        self.fractions.append(alpha)
+        if self.verbose:
+            extra = f"  lambda {lam:.1e}" if self.method == "lm" else ""
+            extra += f"  alpha {alpha:g}" if alpha != 1.0 else ""
+            extra += f"  cg {linear_iterations[-1]}" if linear_iterations else ""
+            print(
+                f"iter {self.iterations:3d}  chi2 {chi:.10g}  decrease {decrease:.2e}  "
+                f"|dx| {self.steps[-1]:.2e}{extra}  assembly {self._pending['assembly'] * 1e3:.1f} "
+                f"ms  solve {self._pending['solve'] * 1e3:.1f} ms"
+            )
+        for key, seconds in self._pending.items():
+            self.timings[key].append(seconds)
+            self._pending[key] = 0.0
+        return decrease
+
+
+def _stop_after_step(decrease, step_norm, tol, step_tol):
+    """``(True, reason)`` when an accepted step meets a convergence test, else None."""
+    if decrease < tol:
+        return True, f"converged: relative decrease {decrease:.2e} < tol"
+    if step_norm < step_tol:
+        return True, f"converged: max |dx| {step_norm:.2e} < step_tol"
+    return None
 
 
 def optimize(
@@ -602,14 +794,15 @@ def optimize(
 ):
     """Minimize ``sum e_ij^T Omega_ij e_ij`` by Gauss–Newton or Levenberg–Marquardt.
 
-    Lecture notes, "Algorithm"::
+    Lecture notes, "Algorithm" — and the skeleton of this function::
 
         while not converged:
             H, b = build_linear_system(x)
             dx = solve_sparse(H dx = -b)
             x = x + dx
 
-    with two safeguards the notes leave out:
+    with two safeguards the notes leave out, each a small step-control object
+    (``begin``/``step``/``reject``/``accept``):
 
     * **Gauss–Newton** (``method="gn"``): when a full step increases the objective, the step is
       halved (up to ``max_backtracks`` times); when no fraction decreases it, the iteration stops
@@ -619,9 +812,9 @@ def optimize(
     * **Levenberg–Marquardt** (``method="lm"``): solves ``(H + lambda I) dx = -b``; ``lambda``
       (first ``lambda_initial``) is divided by 10 after a step that decreases the objective and
       multiplied by 10 after one that does not (the step is then retried without relinearizing)
-      — GTSAM's default rule.  Marquardt's ``lambda diag(H)`` scaling, tried here, stalled on the
-      ill-conditioned INTEL graph and needed 2-3x the iterations on CSAIL, where ``lambda I``
-      does not.
+      — GTSAM's default rule; LM gives up above ``lambda = 1e10``.  Marquardt's
+      ``lambda diag(H)`` scaling, tried here, stalled on the ill-conditioned INTEL graph and
+      needed 2-3x the iterations on CSAIL, where ``lambda I`` does not.
 
     Parameters
     ----------
@@ -637,21 +830,21 @@ def optimize(
         ``prior`` is given (then none).
     prior : Prior or sequence of Prior, optional
     max_iterations : int
-        Accepted steps at most.
+        Accepted steps at most (``>= 0``).
     tol : float
         Converged when an accepted step decreases the objective by less than ``tol`` times its
-        value (or a rejected one would change it by less).
+        value (or a rejected one would change it by less).  Finite, ``>= 0``.
     step_tol : float
-        Converged when ``max |dx|`` of an accepted step is below this.
+        Converged when ``max |dx|`` of an accepted step is below this.  Finite, ``>= 0``.
     linear_solver : {"cholesky", "pcg"}
         Sparse Cholesky (:class:`lagolib.linalg.SparseCholesky`) or block-Jacobi
         preconditioned conjugate gradients (:func:`lagolib.linalg.pcg`, relative residual 1e-10).
     backend : {"auto", "qdldl", "scipy"}
         Cholesky backend.
     lambda_initial : float
-        LM's first damping.
+        LM's first damping; finite and ``> 0``.
     max_backtracks : int
-        GN's step halvings before giving up.
+        GN's step halvings before giving up (``>= 0``).
     verbose : bool
         Print one progress line per iteration.
 
@@ -661,13 +854,19 @@ def optimize(
 
     Raises
     ------
+    OptionError, OptionTypeError
+        An option is out of range or of the wrong type (the message names it).
     GaugeError
         A connected component has no fixed pose and no prior (``H`` would be singular).
     GraphError
-        ``initial`` has the wrong shape or a non-finite pose; unknown vertex ids.
+        ``initial`` has the wrong shape or a non-finite pose; unknown vertex ids; an edge's (or
+        prior's) χ² term or block of ``H`` overflows float64 at the initial guess (the message
+        names the edge); ``H`` cannot be factored although the gauge is fixed and the
+        information matrices span more than 12 orders of magnitude (the message names the
+        weakest and the strongest edge).
     NotPositiveDefiniteError
-        ``H`` is numerically not positive definite although the gauge is fixed (extremely
-        ill-conditioned information; try ``method="lm"``).
+        ``H`` is numerically not positive definite although the gauge is fixed and the
+        information matrices are comparable (a poor linearization point; try ``method="lm"``).
 
     Examples
     --------
@@ -679,137 +878,171 @@ def optimize(
     """
     t_start = time.perf_counter()
     if not isinstance(graph, PoseGraph):
-        raise TypeError(f"graph must be a PoseGraph; got {type(graph).__name__}")
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}; got {method!r}")
-    if error not in ERRORS:
-        raise ValueError(f"error must be one of {ERRORS}; got {error!r}")
-    if linear_solver not in ("cholesky", "pcg"):
-        raise ValueError(f"linear_solver must be 'cholesky' or 'pcg'; got {linear_solver!r}")
+        raise OptionTypeError(f"optimize: graph must be a PoseGraph; got {type(graph).__name__}")
+    where = "optimize"
+    method = check_choice(method, "method", where, METHODS)
+    error = check_choice(error, "error", where, ERRORS)
+    linear_solver = check_choice(linear_solver, "linear_solver", where, LINEAR_SOLVERS)
+    backend = check_choice(backend, "backend", where, ("auto",) + BACKENDS)
+    max_iterations = check_int(max_iterations, "max_iterations", where, minimum=0)
+    tol = check_real(tol, "tol", where, minimum=0.0)
+    step_tol = check_real(step_tol, "step_tol", where, minimum=0.0)
+    lambda_initial = check_real(lambda_initial, "lambda_initial", where, minimum=0.0, strict=True)
+    max_backtracks = check_int(max_backtracks, "max_backtracks", where, minimum=0)
+    verbose = check_bool(verbose, "verbose", where)
     fixed, priors = resolve_gauge(graph, fixed, prior)
     x = graph.poses.copy() if initial is None else _initial(graph, initial)
     system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
-    timings = {"assembly": [], "solve": [], "evaluation": []}
+    solve = _LinearSolver(linear_solver, backend)
+    if method == "gn":
+        control = _GaussNewtonSteps(max_backtracks)
+    else:
+        control = _LevenbergMarquardtDamping(lambda_initial)
+    trace = _Trace(method, verbose)
     t_setup = time.perf_counter() - t_start
 
-    factor = None
-    lam = float(lambda_initial)
-    lambdas, lin_iters, steps, fractions = [], [], [], []
-
-    def solve(H, rhs):
-        nonlocal factor
-        if linear_solver == "pcg":
-            out = pcg(H, rhs, preconditioner="block_jacobi", rtol=1e-10)
-            lin_iters.append(out.iterations)
-            return out.x
-        if factor is None:
-            factor = SparseCholesky(H, backend)
-        else:
-            factor.refactor(H)
-        return factor.solve(rhs)
-
-    t = time.perf_counter()
-    H, b, chi = system.assemble(x)
-    history = [chi]
-    t_asm = time.perf_counter() - t
-    t_sol = t_eval = 0.0
-    converged, reason = False, f"reached max_iterations={max_iterations}"
-    if verbose:
-        print(f"iter {0:3d}  chi2 {chi:.10g}")
-    it = 0
-    while it < max_iterations:
+    with np.errstate(over="ignore", invalid="ignore"):  # reported by _check_finite_system
+        H, b, chi = trace.timed("assembly", system.assemble, x)  # build H and b
+    _check_finite_system(system, x, H, b, chi)
+    trace.start(chi)
+    stop = None  # (converged, reason)
+    while stop is None and trace.iterations < max_iterations:
         if system.N == 0 or chi == 0.0:
-            converged, reason = True, "nothing to optimize" if system.N == 0 else "zero error"
+            stop = True, "nothing to optimize" if system.N == 0 else "zero error"
             break
-        accepted = False
-        alpha = 1.0
-        while True:
-            t = time.perf_counter()
-            try:
-                dx = solve(system.damped(H, lam) if method == "lm" else H, -b)
-            except NotPositiveDefiniteError as exc:
-                if method == "lm" and lam < 1e10:
-                    lam *= 10.0
-                    continue
-                raise NotPositiveDefiniteError(
-                    f"iteration {it + 1}: H is not positive definite although every component "
-                    f"has a gauge ({exc}); the information matrices are too ill-conditioned for "
-                    "this start" + ("; try method='lm'" if method == "gn" else "")
-                ) from None
-            t_sol += time.perf_counter() - t
-            t = time.perf_counter()
-            step = alpha * dx
-            x_new = system.update(x, step)
-            chi_new = system.objective(x_new)
-            t_eval += time.perf_counter() - t
+        control.begin()
+        for _ in range(_MAX_TRIALS):
+            # solve H dx = -b (GN: a fraction of dx; LM: (H + lambda I) dx = -b)
+            dx = trace.timed("solve", _solve_step, control, H, b, solve, system, trace)
+            x_new = trace.timed("evaluation", system.update, x, dx)  # x <- x + dx
+            chi_new = trace.timed("evaluation", system.objective, x_new)
             if chi_new < chi:
-                accepted = True
                 break
-            if chi_new - chi <= tol * chi:
-                break  # no decrease, but no increase worth a retry: converged
-            if method == "lm":
-                lam *= 10.0
-                if lam > 1e10:
-                    reason = "LM damping exceeded 1e10 without decreasing the error"
-                    break
-            else:
-                alpha *= 0.5
-                if alpha < 0.5**max_backtracks:
-                    reason = (
-                        f"the Gauss-Newton step increases the error even when halved "
-                        f"{max_backtracks} times; returned the best iterate (try method='lm')"
-                    )
-                    break
-        if not accepted:
-            if chi_new - chi <= tol * chi:
-                converged, reason = True, "converged: no step decreases the error by more than tol"
+            if chi_new - chi <= tol * chi:  # no decrease, but no increase worth a retry
+                stop = True, "converged: no step decreases the error by more than tol"
+                break
+            give_up = control.reject()  # halve the step / raise the damping
+            if give_up is not None:
+                stop = False, give_up
+                break
+        else:  # pragma: no cover - unreachable, see _MAX_TRIALS
+            raise ConvergenceError(f"optimize: {_MAX_TRIALS} rejected trials in one iteration")
+        if stop is not None:
             break
-        it += 1
-        decrease = (chi - chi_new) / chi
+        lam, alpha = control.accept()
+        decrease = trace.accept(chi, chi_new, dx, lam, alpha, solve.iterations)
         x, chi = x_new, chi_new
-        history.append(chi)
-        steps.append(float(np.max(np.abs(step))) if step.size else 0.0)
-        lambdas.append(lam if method == "lm" else 0.0)
-        fractions.append(alpha)
-        if method == "lm":
-            lam = max(lam / 10.0, 1e-12)
-        if verbose:
-            extra = f"  lambda {lambdas[-1]:.1e}" if method == "lm" else ""
-            extra += f"  alpha {alpha:g}" if alpha != 1.0 else ""
-            extra += f"  cg {lin_iters[-1]}" if lin_iters else ""
-            print(
-                f"iter {it:3d}  chi2 {chi:.10g}  decrease {decrease:.2e}  |dx| {steps[-1]:.2e}"
-                f"{extra}  assembly {t_asm * 1e3:.1f} ms  solve {t_sol * 1e3:.1f} ms"
-            )
-        timings["assembly"].append(t_asm)
-        timings["solve"].append(t_sol)
-        timings["evaluation"].append(t_eval)
-        t_sol = t_eval = 0.0
-        if decrease < tol:
-            converged, reason = True, f"converged: relative decrease {decrease:.2e} < tol"
-            break
-        if steps[-1] < step_tol:
-            converged, reason = True, f"converged: max |dx| {steps[-1]:.2e} < step_tol"
-            break
-        if it < max_iterations:
-            t = time.perf_counter()
-            H, b, _ = system.assemble(x)
-            t_asm = time.perf_counter() - t
-    timings["setup"] = t_setup
-    timings["total"] = time.perf_counter() - t_start
+        stop = _stop_after_step(decrease, trace.steps[-1], tol, step_tol)  # converged?
+        if stop is None and trace.iterations < max_iterations:
+            H, b, _ = trace.timed("assembly", system.assemble, x)  # build H and b
+    converged, reason = stop or (False, f"reached max_iterations={max_iterations}")
+    trace.timings["setup"] = t_setup
+    trace.timings["total"] = time.perf_counter() - t_start
     return OptimizeResult(
         poses=x,
         chi2=chi,
-        chi2_history=history,
-        step_norms=steps,
-        iterations=it,
+        chi2_history=trace.history,
+        step_norms=trace.steps,
+        iterations=trace.iterations,
         converged=converged,
         reason=reason,
         method=method,
         error=error,
         graph=graph.with_poses(x),
-        lambdas=lambdas,
-        step_fractions=fractions,
-        linear_iterations=lin_iters,
-        timings=timings,
+        lambdas=trace.lambdas,
+        step_fractions=trace.fractions,
+        linear_iterations=solve.iterations,
+        timings=trace.timings,
     )
+
+
+def _check_finite_system(system, poses, H, b, chi):
+    """GraphError naming the edge (or prior) whose χ² term or block of ``H`` overflows float64."""
+    if math.isfinite(chi) and np.all(np.isfinite(H.data)) and np.all(np.isfinite(b)):
+        return
+    g = system.graph
+    e, J, ep, Jp = system._terms(poses)
+    with np.errstate(all="ignore"):
+        parts = [
+            (e, J, g.information, [g._edge_name(k) for k in range(g.m)]),
+            (
+                ep,
+                Jp,
+                system._prior_info,
+                [f"the prior on vertex id {p.vertex}" for p in system.priors],
+            ),
+        ]
+        for err, jac, info, names in parts:
+            terms = np.einsum("ka,kab,kb->k", err, info, err)
+            blocks = np.swapaxes(jac, 1, 2) @ info @ jac
+            bad = np.flatnonzero(~np.isfinite(terms) | ~np.all(np.isfinite(blocks), axis=(1, 2)))
+            if bad.size:
+                k = int(bad[0])
+                raise GraphError(
+                    f"{names[k]}: at the initial guess its χ² term e^T Omega e = {terms[k]:.3g} or "
+                    f"its block J^T Omega J of H overflows float64 (error e = {err[k].tolist()}, "
+                    f"largest information entry {np.max(np.abs(info[k])):.3g}; {bad.size} such "
+                    "term(s)); give an initial guess closer to the measurements or rescale the "
+                    "information",
+                    edge=k if info is g.information else None,
+                )
+    raise GraphError(
+        f"the χ² sum ({chi!r}) or H overflows float64 although every edge's term is finite; "
+        "rescale the information matrices"
+    )
+
+
+#: When the information matrices of a graph span more orders of magnitude than this, a failed
+#: factorization of ``H`` is blamed on them (GraphError) rather than on the linearization point.
+_SPREAD_ORDERS = 12
+
+
+def _information_spread(system):
+    """Why ``H`` may be numerically singular: ``(orders, sentence, edge)`` from the range of the
+    information matrices' eigenvalues (``edge``: the strongest edge, or None for a prior)."""
+    g = system.graph
+    info = np.concatenate([g.information, system._prior_info])
+    names = [g._edge_name(k) for k in range(g.m)] + [
+        f"the prior on vertex id {p.vertex}" for p in system.priors
+    ]
+    if info.shape[0] == 0:
+        return 0.0, "the graph has no measurements", None
+    eig = np.linalg.eigvalsh(info)
+    weak, strong = int(np.argmin(eig[:, 0])), int(np.argmax(eig[:, -1]))
+    lo, hi = eig[weak, 0], eig[strong, -1]
+    orders = math.log10(hi / lo)
+    if orders < _SPREAD_ORDERS:
+        return (
+            orders,
+            (
+                f"the information matrices span only {orders:.0f} orders of magnitude, so the "
+                "linearization point is the likely cause: give a better initial guess"
+            ),
+            None,
+        )
+    return (
+        orders,
+        (
+            f"the information matrices span {orders:.0f} orders of magnitude (smallest eigenvalue "
+            f"{lo:.3g} on {names[weak]}, largest {hi:.3g} on {names[strong]}) and float64 resolves "
+            "about 16: rescale the information or remove the outlier"
+        ),
+        (strong if strong < g.m else None),
+    )
+
+
+def _solve_step(control, H, b, solve, system, trace):
+    """``control.step``, with a factorization failure explained in the user's terms."""
+    try:
+        return control.step(H, b, solve, system)
+    except NotPositiveDefiniteError as exc:
+        orders, why, edge = _information_spread(system)
+        message = (
+            f"iteration {trace.iterations + 1}: H is not positive definite although every "
+            f"component has a gauge ({exc}); {why}"
+        )
+        if orders >= _SPREAD_ORDERS:  # the input is to blame
+            raise GraphError(message, edge=edge) from None
+        raise NotPositiveDefiniteError(
+            message + ("; try method='lm'" if control.method == "gn" else ""), pivot=exc.pivot
+        ) from None

@@ -30,7 +30,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .errors import NotPositiveDefiniteError
+from .checks import check_bool, check_choice, check_int, check_real
+from .errors import NotPositiveDefiniteError, OptionError, OptionTypeError
 
 __all__ = [
     "SparseCholesky",
@@ -56,11 +57,43 @@ def available_backends():
     return tuple(out)
 
 
-def _check_square(H):
+def _check_square(H, where="SparseCholesky", *, check=True):
+    """``H`` must be a square scipy.sparse matrix; with ``check``, also finite and symmetric."""
     if not sp.issparse(H):
-        raise TypeError(f"H must be a scipy.sparse matrix; got {type(H).__name__}")
-    if H.shape[0] != H.shape[1]:
-        raise ValueError(f"H must be square; got shape {H.shape}")
+        raise OptionTypeError(f"{where}: H must be a scipy.sparse matrix; got {type(H).__name__}")
+    if H.ndim != 2 or H.shape[0] != H.shape[1]:
+        raise OptionError(f"{where}: H must be square; got shape {H.shape}")
+    if H.dtype.kind not in "biuf":
+        raise OptionTypeError(f"{where}: H must be real; got dtype {H.dtype}")
+    if not check:
+        return
+    data = H.tocsr().data if H.format not in ("csr", "csc", "coo") else H.data
+    if not np.all(np.isfinite(data)):
+        raise OptionError(f"{where}: H has non-finite entries (nan or inf)")
+    scale = float(np.max(np.abs(data))) if data.size else 0.0
+    asym = abs(H - H.T)
+    if asym.nnz and asym.max() > 1e-10 * scale:
+        raise OptionError(
+            f"{where}: H is not symmetric (max |H - H^T| = {asym.max():.3g} against max |H| = "
+            f"{scale:.3g}); pass a symmetric matrix (both triangles stored)"
+        )
+
+
+def _check_rhs(b, N, where, *, columns=True, name="b"):
+    """``b`` as a finite float array of shape (N,) (or (N, k) with ``columns``)."""
+    if np.iscomplexobj(b):
+        raise OptionTypeError(f"{where}: {name} must be real; got a complex array")
+    try:
+        b = np.asarray(b, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise OptionTypeError(f"{where}: {name} must be a real array: {exc}") from None
+    ok = b.shape[:1] == (N,) and (b.ndim == 1 or (columns and b.ndim == 2))
+    if not ok:
+        shapes = f"({N},) or ({N}, k)" if columns else f"({N},)"
+        raise OptionError(f"{where}: {name} must have shape {shapes}; got {b.shape}")
+    if not np.all(np.isfinite(b)):
+        raise OptionError(f"{where}: {name} has non-finite entries (nan or inf)")
+    return b
 
 
 class SparseCholesky:
@@ -71,9 +104,14 @@ class SparseCholesky:
     H : scipy.sparse matrix, shape (N, N)
         Symmetric positive definite; both triangles stored (only the upper one is read by qdldl).
     backend : {"auto", "qdldl", "scipy"}
+    check : bool
+        Check that ``H`` (and every later one given to :meth:`refactor`) is finite and
+        symmetric — ``O(nnz)``; lagolib's optimizer, which builds ``H`` symmetric, skips it.
 
     Raises
     ------
+    OptionError, OptionTypeError
+        ``H`` is not a square, finite, symmetric sparse matrix; unknown ``backend``.
     NotPositiveDefiniteError
         If a pivot of the factorization is not positive: ``H`` is singular or indefinite
         (for a pose graph: a pose or component without a gauge, see
@@ -87,12 +125,12 @@ class SparseCholesky:
     array([0.090909, 0.636364])
     """
 
-    def __init__(self, H, backend="auto"):
-        _check_square(H)
+    def __init__(self, H, backend="auto", *, check=True):
+        backend = check_choice(backend, "backend", "SparseCholesky", ("auto",) + BACKENDS)
+        self._check = check_bool(check, "check", "SparseCholesky")
+        _check_square(H, "SparseCholesky", check=False)
         if backend == "auto":
             backend = available_backends()[0]
-        if backend not in BACKENDS:
-            raise ValueError(f"backend must be 'auto' or one of {BACKENDS}; got {backend!r}")
         self.backend = backend
         self.shape = H.shape
         self._solver = None
@@ -100,9 +138,9 @@ class SparseCholesky:
 
     def refactor(self, H):
         """Factor a new matrix with the same shape (and, for speed, the same sparsity pattern)."""
-        _check_square(H)
+        _check_square(H, "SparseCholesky", check=self._check)
         if H.shape != self.shape:
-            raise ValueError(f"refactor needs shape {self.shape}; got {H.shape}")
+            raise OptionError(f"SparseCholesky.refactor needs shape {self.shape}; got {H.shape}")
         if self.shape[0] == 0:
             return self
         if self.backend == "qdldl":
@@ -120,11 +158,10 @@ class SparseCholesky:
                 self._solver = qdldl.Solver(U, upper=True)
             else:
                 self._solver.update(U, upper=True)
-        except RuntimeError:
+        except (RuntimeError, ValueError):  # ValueError: qdldl's "Matrix A is empty" (H = 0)
             self._solver = None
-            raise NotPositiveDefiniteError(
-                "sparse Cholesky (qdldl) failed: the matrix is singular or indefinite"
-            ) from None
+            what = "the matrix is zero" if U.nnz == 0 else "the matrix is singular or indefinite"
+            raise NotPositiveDefiniteError(f"sparse Cholesky (qdldl) failed: {what}") from None
         self._nnz = U.nnz
         _, d, perm = self._solver.factors()
         bad = np.flatnonzero(~(d > 0))
@@ -169,14 +206,19 @@ class SparseCholesky:
         -------
         ndarray, same shape as ``b``
         """
-        b = np.asarray(b, dtype=float)
-        if b.shape[:1] != self.shape[:1] or b.ndim > 2:
-            raise ValueError(f"b must have shape ({self.shape[0]},) or ({self.shape[0]}, k)")
+        b = _check_rhs(b, self.shape[0], "SparseCholesky.solve")
         if self.shape[0] == 0:
             return np.zeros_like(b)
         if self.backend == "qdldl" and b.ndim == 2:
-            return np.column_stack([self._solver.solve(col) for col in b.T]).reshape(b.shape)
-        return self._solver.solve(b)
+            x = np.column_stack([self._solver.solve(col) for col in b.T]).reshape(b.shape)
+        else:
+            x = self._solver.solve(b)
+        if not np.all(np.isfinite(x)):
+            raise NotPositiveDefiniteError(
+                f"sparse Cholesky ({self.backend}): the solution overflows float64; the matrix "
+                "is numerically singular (pivots too small, e.g. information underflowing to zero)"
+            )
+        return x
 
 
 def solve_spd(H, b, backend="auto"):
@@ -232,7 +274,10 @@ def _preconditioner(H, kind, block):
     if kind == "block_jacobi":
         N = H.shape[0]
         if N % block:
-            raise ValueError(f"block_jacobi needs a size divisible by {block}; got {N}")
+            raise OptionError(
+                f"pcg: block={block} does not divide the size of H ({N}); the block-Jacobi "
+                "preconditioner needs N divisible by block"
+            )
         nb = N // block
         Hc = H.tocsr()
         idx = np.arange(N).reshape(nb, block)
@@ -246,10 +291,12 @@ def _preconditioner(H, kind, block):
                 "block-Jacobi preconditioner: a diagonal block is singular"
             ) from None
         return lambda r: np.einsum("kab,kb->ka", inv, r.reshape(nb, block)).ravel()
-    raise ValueError(f"preconditioner must be None, 'jacobi' or 'block_jacobi'; got {kind!r}")
+    raise AssertionError(kind)  # pragma: no cover - pcg checks the choice
 
 
-def pcg(H, b, *, preconditioner="block_jacobi", block=3, rtol=1e-10, maxiter=None, x0=None):
+def pcg(
+    H, b, *, preconditioner="block_jacobi", block=3, rtol=1e-10, maxiter=None, x0=None, check=True
+):
     """Preconditioned conjugate gradients for ``H x = b`` (lecture notes: "Conjugate gradients").
 
     The textbook iteration (Shewchuk, "An Introduction to the Conjugate Gradient Method Without
@@ -274,6 +321,8 @@ def pcg(H, b, *, preconditioner="block_jacobi", block=3, rtol=1e-10, maxiter=Non
         Default ``10 N``.
     x0 : array_like, shape (N,), optional
         Start; default zeros.
+    check : bool
+        Check that ``H`` is finite and symmetric (``O(nnz)``).
 
     Returns
     -------
@@ -287,14 +336,20 @@ def pcg(H, b, *, preconditioner="block_jacobi", block=3, rtol=1e-10, maxiter=Non
     >>> out.iterations <= 6, bool(np.allclose(H @ out.x, 1.0))
     (True, True)
     """
-    _check_square(H)
-    b = np.asarray(b, dtype=float)
+    where = "pcg"
+    _check_square(H, where, check=check_bool(check, "check", where))
     N = H.shape[0]
-    if b.shape != (N,):
-        raise ValueError(f"b must have shape ({N},); got {b.shape}")
+    b = _check_rhs(b, N, where, columns=False)
+    if preconditioner is not None:
+        check_choice(preconditioner, "preconditioner", where, ("block_jacobi", "jacobi"))
+    block = check_int(block, "block", where, minimum=1)
+    rtol = check_real(rtol, "rtol", where, minimum=0.0)
+    maxiter = 10 * N if maxiter is None else check_int(maxiter, "maxiter", where, minimum=0)
+    if x0 is None:
+        x = np.zeros(N)
+    else:
+        x = np.array(_check_rhs(x0, N, where, columns=False, name="x0"), dtype=float)
     apply_Minv = _preconditioner(H, preconditioner, block)
-    maxiter = 10 * N if maxiter is None else int(maxiter)
-    x = np.zeros(N) if x0 is None else np.array(x0, dtype=float)
     bnorm = np.linalg.norm(b)
     if bnorm == 0.0:
         return PCGResult(np.zeros(N), 0, [0.0], True)

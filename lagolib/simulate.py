@@ -19,11 +19,14 @@ error is written in frame ``i`` or in the measurement's frame (TORO and g2o agre
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import se2
+from .checks import check_bool, check_choice, check_int, check_real
+from .errors import GraphError, OptionError, OptionTypeError
 from .graph import PoseGraph
 
 __all__ = ["Simulation", "measure", "loop_world", "manhattan_world", "grid_world"]
@@ -43,6 +46,43 @@ class Simulation:
 
     graph: PoseGraph
     truth: np.ndarray
+
+
+def _rng(rng, where):
+    """A Generator from ``rng``: a non-negative int seed or a ``numpy.random.Generator``.
+
+    ``None`` (fresh OS entropy) is refused: every simulated world must be reproducible.
+    """
+    if isinstance(rng, np.random.Generator):
+        return rng
+    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, numbers.Integral):
+        raise OptionTypeError(
+            f"{where}: rng must be a non-negative integer seed or a numpy.random.Generator; "
+            f"got {rng!r} ({type(rng).__name__})"
+        )
+    return np.random.default_rng(check_int(rng, "rng", where, minimum=0))
+
+
+def _sigmas(value, name, where, m):
+    """Per-edge standard deviations: finite, > 0, one value or one per edge (shape (m,))."""
+    if np.iscomplexobj(value):
+        raise OptionTypeError(f"{where}: {name} must be real; got a complex value")
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise OptionTypeError(f"{where}: {name} must be a number or an array: {exc}") from None
+    if a.ndim > 1 or (a.ndim == 1 and a.shape != (m,)):
+        raise OptionError(
+            f"{where}: {name} must be one number or {m} (one per edge); got {a.shape}"
+        )
+    if not np.all(np.isfinite(a) & (a > 0)):
+        flat = a.ravel()
+        bad = float(flat[~(np.isfinite(flat) & (flat > 0))][0])
+        raise OptionError(
+            f"{where}: {name} must be positive and finite (use noiseless=True for exact data); "
+            f"got {bad!r}"
+        )
+    return np.broadcast_to(a, (m,))
 
 
 def measure(
@@ -79,24 +119,39 @@ def measure(
     -------
     Simulation
     """
-    rng = np.random.default_rng(rng)
+    where = "measure"
+    rng = _rng(rng, where)
+    noise = check_choice(noise, "noise", where, ("fixed", "proportional"))
+    floor = check_real(floor, "floor", where, minimum=0.0, strict=True)
+    noiseless = check_bool(noiseless, "noiseless", where)
+    if np.iscomplexobj(truth):
+        raise GraphError(f"{where}: truth must be real; got a complex array")
     truth = np.asarray(truth, dtype=float)
-    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if truth.ndim != 2 or truth.shape[1] != 3:
+        raise GraphError(f"{where}: truth must have shape (n, 3); got {truth.shape}")
+    bad = np.flatnonzero(~np.all(np.isfinite(truth), axis=1))
+    if bad.size:
+        raise GraphError(f"{where}: truth pose {bad[0]} is not finite: {truth[bad[0]].tolist()}")
+    edges = np.asarray(edges)
+    if edges.size and edges.dtype.kind not in "iu":
+        raise GraphError(f"{where}: edges must be integer vertex indices; got dtype {edges.dtype}")
+    edges = edges.astype(np.int64).reshape(-1, 2)
+    out = np.flatnonzero(np.any((edges < 0) | (edges >= len(truth)), axis=1))
+    if out.size:
+        raise GraphError(
+            f"{where}: edge {out[0]} refers to pose {edges[out[0]].tolist()} but truth has "
+            f"{len(truth)} poses",
+            edge=int(out[0]),
+        )
     z = se2.between(truth[edges[:, 0]], truth[edges[:, 1]])  # p_j ⊖ p_i, Carlone eq. (1)
     m = len(edges)
-    sigma_xy = np.broadcast_to(np.asarray(sigma_xy, dtype=float), (m,))
-    sigma_theta = np.broadcast_to(np.asarray(sigma_theta, dtype=float), (m,))
+    sigma_xy = _sigmas(sigma_xy, "sigma_xy", where, m)
+    sigma_theta = _sigmas(sigma_theta, "sigma_theta", where, m)
     if noise == "fixed":
         sxy, sth = sigma_xy.copy(), sigma_theta.copy()
-    elif noise == "proportional":
+    else:
         sxy = sigma_xy * np.maximum(np.hypot(z[:, 0], z[:, 1]), floor)
         sth = sigma_theta * np.maximum(np.abs(z[:, 2]), floor)
-    else:
-        raise ValueError(f"noise must be 'fixed' or 'proportional'; got {noise!r}")
-    if np.any(sxy <= 0) or np.any(sth <= 0):
-        raise ValueError(
-            "sigma_xy and sigma_theta must be positive (use noiseless=True for exact data)"
-        )
     sigma = np.column_stack([sxy, sxy, sth])
     eps = rng.standard_normal((m, 3)) * sigma
     if not noiseless:
@@ -149,19 +204,25 @@ def loop_world(
     Simulation
         ``laps * poses_per_lap`` poses.
     """
-    rng = np.random.default_rng(rng)
+    where = "loop_world"
+    rng = _rng(rng, where)
+    laps = check_int(laps, "laps", where, minimum=1)
+    poses_per_lap = check_int(poses_per_lap, "poses_per_lap", where, minimum=2)
+    shape = check_choice(shape, "shape", where, ("square", "circle"))
+    step = check_real(step, "step", where, minimum=0.0, strict=True)
+    closure_probability = check_real(
+        closure_probability, "closure_probability", where, minimum=0.0, maximum=1.0
+    )
     n = laps * poses_per_lap
     if shape == "square":
         if poses_per_lap % 4:
-            raise ValueError(
-                f"a square loop needs poses_per_lap divisible by 4; got {poses_per_lap}"
+            raise OptionError(
+                f"{where}: a square loop needs poses_per_lap divisible by 4; got {poses_per_lap}"
             )
         side = poses_per_lap // 4
         turn = np.where((np.arange(n - 1) + 1) % side == 0, np.pi / 2, 0.0)
-    elif shape == "circle":
-        turn = np.full(n - 1, 2 * np.pi / poses_per_lap)
     else:
-        raise ValueError(f"shape must be 'square' or 'circle'; got {shape!r}")
+        turn = np.full(n - 1, 2 * np.pi / poses_per_lap)
     controls = np.column_stack([np.full(n - 1, step), np.zeros(n - 1), turn])
     truth = _drive(controls)
     odo = np.column_stack([np.arange(n - 1), np.arange(1, n)])
@@ -207,7 +268,19 @@ def manhattan_world(
     -------
     Simulation
     """
-    rng = np.random.default_rng(rng)
+    where = "manhattan_world"
+    rng = _rng(rng, where)
+    n_poses = check_int(n_poses, "n_poses", where, minimum=2)
+    extent = check_int(extent, "extent", where, minimum=2)
+    step = check_real(step, "step", where, minimum=0.0, strict=True)
+    turn_probability = check_real(
+        turn_probability, "turn_probability", where, minimum=0.0, maximum=1.0
+    )
+    closure_radius = check_real(closure_radius, "closure_radius", where, minimum=0.0)
+    closure_probability = check_real(
+        closure_probability, "closure_probability", where, minimum=0.0, maximum=1.0
+    )
+    min_separation = check_int(min_separation, "min_separation", where, minimum=1)
     headings = np.array([0.0, np.pi / 2, np.pi, -np.pi / 2])
     cell = np.zeros(2, dtype=np.int64)
     h = 0  # index into headings
@@ -264,12 +337,40 @@ def grid_world(
     odometry's (place recognition is often less precise than odometry); other keywords go to
     :func:`measure`.
 
+    Parameters
+    ----------
+    rows, cols : int
+        Grid size, ``rows * cols >= 2``.
+    step : float
+        Grid spacing, ``> 0``.
+    closure_probability : float
+        In ``[0, 1]``.
+    closure_noise : float
+        ``> 0``.
+    sigma_xy, sigma_theta : float
+        Odometry standard deviations, ``> 0``.
+    rng : int or numpy.random.Generator
+    **noise
+        ``noise``, ``floor``, ``noiseless``: see :func:`measure`.
+
     Returns
     -------
     Simulation
         ``rows * cols`` poses.
     """
-    rng = np.random.default_rng(rng)
+    where = "grid_world"
+    rng = _rng(rng, where)
+    rows = check_int(rows, "rows", where, minimum=1)
+    cols = check_int(cols, "cols", where, minimum=1)
+    if rows * cols < 2:
+        raise OptionError(f"{where}: rows * cols must be at least 2; got {rows} x {cols}")
+    step = check_real(step, "step", where, minimum=0.0, strict=True)
+    closure_probability = check_real(
+        closure_probability, "closure_probability", where, minimum=0.0, maximum=1.0
+    )
+    closure_noise = check_real(closure_noise, "closure_noise", where, minimum=0.0, strict=True)
+    sigma_xy = check_real(sigma_xy, "sigma_xy", where, minimum=0.0, strict=True)
+    sigma_theta = check_real(sigma_theta, "sigma_theta", where, minimum=0.0, strict=True)
     r = np.repeat(np.arange(rows), cols)
     c = np.tile(np.arange(cols), rows)
     c = np.where(r % 2 == 0, c, cols - 1 - c)

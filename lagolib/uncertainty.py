@@ -24,15 +24,24 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2 as _chi2_dist
 
-from .errors import GraphError
+from .checks import check_choice, check_int, check_real
+from .errors import GraphError, OptionTypeError
 from .gauss_newton import (
     LinearSystem,
+    _check_finite_system,
     _initial,
     edge_jacobians,
     resolve_gauge,
 )
-from .graph import describe_bad_information, first_bad_information, vertex_rows
-from .linalg import SparseCholesky
+from .graph import (
+    ERRORS,
+    PoseGraph,
+    _numeric,
+    describe_bad_information,
+    first_bad_information,
+    vertex_rows,
+)
+from .linalg import BACKENDS, SparseCholesky
 from .plotting import covariance_ellipse, plot_covariance_ellipses
 
 __all__ = [
@@ -44,6 +53,19 @@ __all__ = [
     "covariance_ellipse",
     "plot_covariance_ellipses",
 ]
+
+
+FRAMES = ("global", "local")
+
+
+def _check_graph(graph, where):
+    if not isinstance(graph, PoseGraph):
+        raise OptionTypeError(f"{where}: graph must be a PoseGraph; got {type(graph).__name__}")
+
+
+def _poses(graph, poses):
+    """``graph.poses`` or ``poses`` checked: shape (n, 3), finite (GraphError naming the vertex)."""
+    return graph.poses if poses is None else _initial(graph, poses, "poses")
 
 
 def information_matrix(graph, poses=None, *, fixed=None, prior=None, error="t2v"):
@@ -64,10 +86,14 @@ def information_matrix(graph, poses=None, *, fixed=None, prior=None, error="t2v"
     free : ndarray of int, shape (k,)
         Row index (into ``graph.poses``) of the pose of each 3x3 block of ``H``.
     """
+    _check_graph(graph, "information_matrix")
+    error = check_choice(error, "error", "information_matrix", ERRORS)
+    x = _poses(graph, poses)
     fixed, priors = resolve_gauge(graph, fixed, prior)
-    x = graph.poses if poses is None else _initial(graph, poses)
     system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
     H, _, _ = system.assemble(x)
+    if not np.all(np.isfinite(H.data)):
+        _check_finite_system(system, x, H, np.zeros(0), 0.0)
     return H, system.free
 
 
@@ -127,13 +153,16 @@ def marginal_covariances(
     >>> float(cov[0].max()), bool(cov[2, 0, 0] > cov[1, 0, 0] > 0)
     (0.0, True)
     """
-    if frame not in ("global", "local"):
-        raise ValueError(f"frame must be 'global' or 'local'; got {frame!r}")
-    x = graph.poses if poses is None else _initial(graph, poses)
+    where = "marginal_covariances"
+    _check_graph(graph, where)
+    frame = check_choice(frame, "frame", where, FRAMES)
+    backend = check_choice(backend, "backend", where, ("auto",) + BACKENDS)
+    batch = check_int(batch, "batch", where, minimum=1)
+    x = _poses(graph, poses)
     idx = (
         np.arange(graph.n)
         if vertices is None
-        else vertex_rows(graph, vertices, "marginal_covariances")
+        else vertex_rows(graph, vertices, "marginal_covariances: vertices")
     )
     H, free = information_matrix(graph, x, fixed=fixed, prior=prior, error=error)
     block_of = np.full(graph.n, -1, dtype=np.int64)
@@ -177,6 +206,10 @@ def relative_covariances(graph, i, vertices=None, *, poses=None, error="t2v", fr
     -------
     ndarray, shape (k, 3, 3)
     """
+    _check_graph(graph, "relative_covariances")
+    vertex_rows(graph, [i], "relative_covariances: i (the reference pose)")
+    if vertices is not None:
+        vertex_rows(graph, vertices, "relative_covariances: vertices")
     return marginal_covariances(
         graph, vertices, poses=poses, fixed=[i], prior=None, error=error, frame=frame
     )
@@ -237,16 +270,29 @@ def loop_closure_test(
     -------
     GateResult
     """
-    x = graph.poses if poses is None else _initial(graph, poses)
-    z = np.asarray(measurement, dtype=float)
-    omega = np.asarray(information, dtype=float)
-    if z.shape != (3,) or omega.shape != (3, 3):
-        raise GraphError("measurement must have shape (3,) and information shape (3, 3)")
+    where = "loop_closure_test"
+    _check_graph(graph, where)
+    confidence = check_real(confidence, "confidence", where, minimum=0.0, maximum=1.0, strict=True)
+    error = check_choice(error, "error", where, ERRORS)
+    (ki,) = vertex_rows(graph, [i], f"{where}: i")
+    (kj,) = vertex_rows(graph, [j], f"{where}: j")
+    x = _poses(graph, poses)
+    for name, value in (("measurement", measurement), ("information", information)):
+        if np.iscomplexobj(value):
+            raise GraphError(f"{where}: {name} must be real; got a complex array")
+    z = _numeric(measurement, f"{where}: measurement", float)
+    omega = _numeric(information, f"{where}: information", float)
+    if z.shape != (3,):
+        raise GraphError(f"{where}: measurement must have shape (3,); got {z.shape}")
+    if omega.shape != (3, 3):
+        raise GraphError(f"{where}: information must have shape (3, 3); got {omega.shape}")
     if not np.all(np.isfinite(z)):
-        raise GraphError(f"candidate measurement is not finite: {z.tolist()}")
-    if first_bad_information(omega[None]) is not None:
-        raise GraphError(f"candidate loop closure {i} -> {j}: {describe_bad_information(omega)}")
-    ki, kj = vertex_rows(graph, [i, j], "loop_closure_test")
+        raise GraphError(f"{where}: candidate measurement is not finite: {z.tolist()}")
+    if not np.all(np.isfinite(omega)) or first_bad_information(omega[None]) is not None:
+        raise GraphError(
+            f"{where}: information of the candidate loop closure {i} -> {j}: "
+            f"{describe_bad_information(omega)}"
+        )
     (cov,) = relative_covariances(graph, i, [j], poses=x, error=error)
     e, _, B = edge_jacobians(x[ki], x[kj], z, error=error)
     S = B @ cov @ B.T + np.linalg.inv(omega)

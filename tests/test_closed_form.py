@@ -258,3 +258,39 @@ def test_closed_form_on_benchmarks_equals_gauss_newton_on_the_same_error(benchma
     gn = cf.optimize_sincos(g, L.lago(g).poses)
     np.testing.assert_allclose(res.poses[:, :2], gn.poses[:, :2], atol=1e-6)
     assert res.chi2 == pytest.approx(gn.chi2, rel=1e-10)
+
+
+# ------------------------------------------------------- never worse than the start (issue 11)
+def _two_poses():
+    """One constraint p_0 -> p_1: on the circle c² + s² = 1 the stationary points are
+    t = ±(cos θ̂, sin θ̂); the minus one is the maximum of χ² along the circle (χ² = 4)."""
+    z = np.array([[1.0, 0.5, 0.3]])
+    graph = PoseGraph(np.zeros((2, 3)), [[0, 1]], z, [np.eye(3)])
+    start = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.3 + np.pi - 0.2]])  # 0.2 rad from the max
+    return graph, start
+
+
+def test_a_stationary_point_worse_than_the_start_falls_back_to_gauss_newton():
+    graph, start = _two_poses()
+    res = cf.closed_form(graph, initial=start)
+    # the start (angle 0.2 rad off the maximum, positions optimal) has χ² = 2 + 2 cos 0.2
+    assert res.start_chi2 == pytest.approx(2 + 2 * np.cos(0.2), rel=1e-12)
+    assert res.newton_chi2 == pytest.approx(4.0, rel=1e-12)  # Newton climbed to the maximum
+    assert res.fallback and "worse than its start" in res.reason and "Gauss-Newton" in res.reason
+    assert res.chi2 < 1e-20 < res.start_chi2  # the minimum, found by Gauss-Newton
+    np.testing.assert_allclose(res.poses[1], [1.0, 0.5, 0.3], atol=1e-12)
+    np.testing.assert_allclose(res.t, [np.cos(0.3), np.sin(0.3)], atol=1e-12)
+    with pytest.raises(ConvergenceError, match=r"chi2 4, worse than its start's 3\.96"):
+        cf.closed_form(graph, initial=start, if_worse="raise")
+
+
+def test_a_saddle_point_in_a_grid_is_never_returned_silently():
+    sim = simulate.grid_world(rows=3, cols=3, rng=0)
+    start = sim.truth.copy()
+    start[0, 2] += np.pi - 0.3  # the first pose turned almost around
+    res = cf.closed_form(sim.graph, initial=start)
+    assert res.newton_chi2 > res.start_chi2 > res.chi2  # Newton: worse; returned: better
+    assert res.fallback and res.chi2 == pytest.approx(cf.closed_form(sim.graph).chi2, rel=1e-9)
+    good = cf.closed_form(sim.graph)
+    assert not good.fallback and good.chi2 <= good.start_chi2
+    assert good.reason.startswith("stationary point")
