@@ -22,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2 as _chi2_dist
+from scipy.special import gammaincinv
 
 from .checks import check_choice, check_int, check_real
 from .errors import GraphError, OptionTypeError
@@ -297,5 +297,5 @@ def loop_closure_test(
     e, _, B = edge_jacobians(x[ki], x[kj], z, error=error)
     S = B @ cov @ B.T + np.linalg.inv(omega)
     d2 = float(e @ np.linalg.solve(S, e))
-    threshold = float(_chi2_dist.ppf(confidence, 3))
+    threshold = float(2.0 * gammaincinv(1.5, confidence))  # χ²₃ quantile: P(χ²₃ ≤ t) = confidence
     return GateResult(d2, threshold, d2 <= threshold, e, S)
