@@ -62,6 +62,7 @@ from .graph import PoseGraph, vertex_rows
 from .topology import (
     SpanningTree,
     _anchor_row,
+    _disconnected,
     position_incidence_matrix,
     reduced_incidence_matrix,
     spanning_tree,
@@ -347,6 +348,8 @@ def phase1_orientations(graph, delta_bar, *, anchor=None, omega_delta=None, back
         ``estimate`` has shape (n,), ``information`` (n, n): the graph's vertex rows without the
         anchor.  Unique when the graph is connected (Prop. 1).
     """
+    if not graph.is_connected:  # Prop. 1: A P_δ⁻¹ Aᵀ is singular; say why, not "not positive definite"
+        raise _disconnected(graph)
     if omega_delta is None:
         omega_delta = split_information(graph)[1]
     A = reduced_incidence_matrix(graph, anchor)

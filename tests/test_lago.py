@@ -487,3 +487,10 @@ def test_with_equal_variances_the_min_uncertainty_tree_is_the_bfs_tree(seed):
         a, b = T.min_uncertainty_tree(sim.graph), T.bfs_tree(sim.graph)
         np.testing.assert_array_equal(a.edges, b.edges)
         np.testing.assert_array_equal(a.parent, b.parent)
+
+
+def test_phase1_on_a_disconnected_graph_names_the_cause():
+    z = np.zeros((2, 3))
+    apart = PoseGraph(np.zeros((4, 3)), [(0, 1), (2, 3)], z, np.tile(np.eye(3), (2, 1, 1)))
+    with pytest.raises(GraphError, match="not connected"):
+        L.phase1_orientations(apart, np.zeros(2))
