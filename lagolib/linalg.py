@@ -259,6 +259,17 @@ class PCGResult:
     converged: bool = False
 
 
+def _dot(a, b):
+    """``a . b`` without BLAS: a single-threaded, deterministic sum.
+
+    OpenBLAS runs ``ddot`` on all cores for vectors longer than 10 000 entries; for one dot
+    product that is mostly thread start-up and, on a machine whose cores are busy, threads waiting
+    for each other — PCG on M3500's 10 497 unknowns ran 20x slower than single-threaded, and its
+    iteration count changed from run to run with the summation order.
+    """
+    return float(np.einsum("i,i->", a, b))
+
+
 def _preconditioner(H, kind, block):
     """``M^-1`` as a function ``r -> z``."""
     if kind is None:
@@ -350,27 +361,27 @@ def pcg(
     else:
         x = np.array(_check_rhs(x0, N, where, columns=False, name="x0"), dtype=float)
     apply_Minv = _preconditioner(H, preconditioner, block)
-    bnorm = np.linalg.norm(b)
+    bnorm = np.sqrt(_dot(b, b))
     if bnorm == 0.0:
         return PCGResult(np.zeros(N), 0, [0.0], True)
     r = b - H @ x
     z = apply_Minv(r)
     d = z.copy()
-    rz = r @ z
-    history = [np.linalg.norm(r) / bnorm]
+    rz = _dot(r, z)
+    history = [np.sqrt(_dot(r, r)) / bnorm]
     k = 0
     while history[-1] > rtol and k < maxiter:
         Hd = H @ d
-        dHd = d @ Hd
+        dHd = _dot(d, Hd)
         if not dHd > 0:
             raise NotPositiveDefiniteError(f"PCG: d^T H d = {dHd:.3g} at iteration {k}")
         alpha = rz / dHd
         x += alpha * d
         r -= alpha * Hd
         z = apply_Minv(r)
-        rz_new = r @ z
+        rz_new = _dot(r, z)
         d = z + (rz_new / rz) * d
         rz = rz_new
         k += 1
-        history.append(np.linalg.norm(r) / bnorm)
+        history.append(np.sqrt(_dot(r, r)) / bnorm)
     return PCGResult(x, k, history, history[-1] <= rtol)
