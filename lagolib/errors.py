@@ -2,8 +2,20 @@
 
 Every problem lagolib detects in its input is reported with one of these classes, and the message
 says *where* (``file:line``, or the edge index and the vertex ids) and *what to do*.  They all
-derive from :class:`LagolibError`, so ``except lagolib.LagolibError`` catches any of them; the
-input-validation errors also derive from :class:`ValueError`.
+derive from :class:`LagolibError`, so ``except lagolib.LagolibError`` catches any of them.  Each
+also derives from the builtin a Python user would catch for that kind of problem:
+
+=========================  ===============================================================
+lagolib class              builtin base
+=========================  ===============================================================
+GraphError, ParseError     :class:`ValueError` (bad values in a graph or a file)
+GraphTypeError             :class:`TypeError` (and :class:`ValueError`, via GraphError)
+OptionError, GaugeError    :class:`ValueError`
+OptionTypeError            :class:`TypeError`
+DatasetError               :class:`LookupError` (a named dataset that cannot be provided)
+NotPositiveDefiniteError   :class:`ArithmeticError`
+ConvergenceError           :class:`RuntimeError`
+=========================  ===============================================================
 """
 
 from __future__ import annotations
@@ -11,6 +23,7 @@ from __future__ import annotations
 __all__ = [
     "LagolibError",
     "GraphError",
+    "GraphTypeError",
     "ParseError",
     "DatasetError",
     "GaugeError",
@@ -34,11 +47,24 @@ class GraphError(LagolibError, ValueError):
     ----------
     edge : int or None
         Index of the offending edge in the graph's edge arrays, when one edge is to blame.
+    vertex : int or None
+        Row index of the offending vertex in the graph's pose array, when one vertex is to blame
+        (the message names its id).
     """
 
-    def __init__(self, message: str, *, edge: int | None = None):
+    def __init__(self, message: str, *, edge: int | None = None, vertex: int | None = None):
         super().__init__(message)
         self.edge = edge
+        self.vertex = vertex
+
+
+class GraphTypeError(GraphError, TypeError):
+    """An array given for a pose graph has the wrong type: complex, text, bool or objects.
+
+    Raised instead of converting silently (``np.asarray(z, dtype=float)`` would drop the imaginary
+    part of a complex array with only a warning).  It is a :class:`TypeError`, and also a
+    :class:`GraphError` so that ``except GraphError`` still catches every problem with a graph.
+    """
 
 
 class ParseError(LagolibError, ValueError):
@@ -59,8 +85,12 @@ class ParseError(LagolibError, ValueError):
         super().__init__(f"{where}: {message}")
 
 
-class DatasetError(LagolibError):
-    """A named dataset is unknown, missing from the local mirror, or fails its checksum."""
+class DatasetError(LagolibError, LookupError):
+    """A named dataset is unknown, missing from the local mirror, or fails its checksum.
+
+    A :class:`LookupError` (like ``KeyError``): the dataset that was asked for by name cannot be
+    provided.
+    """
 
 
 class GaugeError(LagolibError, ValueError):

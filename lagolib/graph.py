@@ -20,25 +20,85 @@ reading, so inside lagolib every information matrix follows the one convention a
 
 from __future__ import annotations
 
+import numbers
+from decimal import Decimal
+
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from . import se2
-from .errors import GraphError
+from .errors import GraphError, GraphTypeError
 
-__all__ = ["PoseGraph", "residuals", "chi2", "vertex_rows"]
+__all__ = [
+    "PoseGraph",
+    "residuals",
+    "chi2",
+    "vertex_rows",
+    "vertex_ids",
+    "check_poses",
+    "first_bad_information",
+    "describe_bad_information",
+    "MAX_INFORMATION",
+    "MIN_INFORMATION",
+    "MAX_INFORMATION_CONDITION",
+]
+
+# Limits on an information matrix Omega (eigenvalues lambda_min <= lambda_max), chosen so that
+# chi² terms and the Hessian blocks built from it stay well inside float64.  An eigenvalue of
+# 1e100 is a standard deviation of 1e-50 in the file's units, 1e-100 one of 1e50: no sensor is
+# that precise or that vague, and beyond these bounds products such as the determinant or
+# Omega * e * e overflow to inf or underflow to zero (float64 spans 2.2e-308 .. 1.8e308).
+MAX_INFORMATION = 1e100
+"""Largest eigenvalue an information matrix may have."""
+MIN_INFORMATION = 1e-100
+"""Smallest eigenvalue an information matrix may have."""
+MAX_INFORMATION_CONDITION = 1e14
+"""Largest condition number ``lambda_max / lambda_min`` of an information matrix.
+
+eigvalsh computes ``lambda_min`` to about ``1e-15 * lambda_max``, so beyond ``1e14`` the sign and
+size of the smallest eigenvalue are rounding noise: the matrix is numerically singular.  (The most
+anisotropic matrix in the public benchmarks, in Carlone's INTEL, has 2.4e11.)
+"""
+
+
+_INT64 = np.iinfo(np.int64)
+_ANGLE_BOUND = f"{se2.MAX_ANGLE:.0e}".replace("e+0", "e").replace("e+", "e")  # "1e9"
 
 
 def _numeric(value, name, dtype):
-    """``np.asarray`` that reports non-numeric or ragged input as a GraphError naming ``name``."""
+    """``np.asarray(value, dtype)`` for arrays of real numbers, naming ``name`` when it fails.
+
+    Complex, text, bool, date and other non-numeric arrays raise
+    :class:`~lagolib.errors.GraphTypeError` (a TypeError) instead of being converted — numpy would
+    drop an imaginary part with only a warning, or parse text; ragged nested lists raise
+    :class:`~lagolib.errors.GraphError`.  With ``dtype=None`` an object array of Python integers
+    (e.g. ids beyond 64 bits) is returned as is, for the caller to range-check.
+    """
     try:
-        a = np.asarray(value, dtype=dtype)
+        a = np.asarray(value)
     except (TypeError, ValueError) as exc:
         raise GraphError(f"{name} must be a numeric array: {exc}") from None
-    if a.dtype.kind not in "biuf":
-        raise GraphError(f"{name} must be a numeric array; got dtype {a.dtype}")
-    return a
+    kind = a.dtype.kind
+    if kind == "O":
+        flat = a.ravel().tolist()
+        for x in flat:
+            if isinstance(x, bool | np.bool_) or not isinstance(x, numbers.Real | Decimal):
+                raise GraphTypeError(
+                    f"{name} must be an array of real numbers; it holds {x!r} ({type(x).__name__})"
+                )
+        if dtype is None and all(isinstance(x, numbers.Integral) for x in flat):
+            return a
+        try:
+            return a.astype(float if dtype is None else dtype)
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise GraphTypeError(f"{name} must be an array of real numbers: {exc}") from None
+    if kind not in "iuf":
+        what = {"c": "complex", "U": "text", "S": "text", "b": "bool"}.get(kind, "non-numeric")
+        raise GraphTypeError(
+            f"{name} must be a numeric array of real numbers; got a {what} array (dtype {a.dtype})"
+        )
+    return a if dtype is None else a.astype(dtype, copy=False)
 
 
 def _frozen(a, dtype):
@@ -63,17 +123,25 @@ class PoseGraph:
     information : array_like, shape (m, 3, 3)
         Symmetric positive-definite information matrices, g2o convention (see module docstring).
         An asymmetry up to 1e-9 of the largest entry is tolerated (rounding), and the symmetric
-        part ``(Omega + Omega^T) / 2`` is stored.
+        part ``(Omega + Omega^T) / 2`` is stored.  Eigenvalues must lie in
+        [:data:`MIN_INFORMATION`, :data:`MAX_INFORMATION`] = [1e-100, 1e100] and the condition
+        number must be at most :data:`MAX_INFORMATION_CONDITION` = 1e14, so that nothing computed
+        from them overflows, underflows or is rounding noise.
     ids : array_like of int, shape (n,), optional
-        Original vertex ids (default ``0 .. n-1``).  Must be unique; they need not equal the row
-        index, and they define the *odometric order* of the vertices.
+        Original vertex ids (default ``0 .. n-1``), in the int64 range.  Must be unique; they
+        need not equal the row index, and they define the *odometric order* of the vertices.
 
     Raises
     ------
     GraphError
-        For wrong shapes, non-finite numbers, indices out of range, self-loops, duplicate ids,
-        or an information matrix that is not symmetric positive definite.  The message names the
-        offending edge (index and vertex ids) or vertex.
+        For wrong shapes, non-finite numbers, angles beyond ``|theta| <= 1e9``
+        (:data:`lagolib.se2.MAX_ANGLE`), indices out of range, self-loops, duplicate ids, ids
+        outside int64, or an information matrix lagolib cannot use
+        (:func:`first_bad_information`).  The message names the offending edge (index and
+        vertex ids) or vertex (id and index); ``GraphError.edge`` / ``GraphError.vertex`` hold
+        the index.
+    GraphTypeError
+        For complex, text, bool or other non-numeric arrays (a TypeError and a GraphError).
 
     Notes
     -----
@@ -103,15 +171,7 @@ class PoseGraph:
             edges = edges.reshape(0, 2)
         if edges.ndim != 2 or edges.shape[1] != 2:
             raise GraphError(f"edges must have shape (m, 2); got {edges.shape}")
-        if edges.dtype.kind not in "iu":
-            integral = (
-                edges.dtype.kind == "f"
-                and np.all(np.isfinite(edges))
-                and np.all(edges == np.round(edges))
-            )
-            if not integral:
-                raise GraphError(f"edges must hold integer vertex indices; got dtype {edges.dtype}")
-            edges = edges.astype(np.int64)
+        edges = _edge_indices(edges, n)
         m = edges.shape[0]
         measurements = _numeric(measurements, "measurements", float)
         information = _numeric(information, "information", float)
@@ -121,19 +181,20 @@ class PoseGraph:
             raise GraphError(f"measurements must have shape ({m}, 3); got {measurements.shape}")
         if information.shape != (m, 3, 3):
             raise GraphError(f"information must have shape ({m}, 3, 3); got {information.shape}")
-        ids = np.arange(n) if ids is None else _numeric(ids, "ids", None)
-        if ids.shape != (n,) or ids.dtype.kind not in "iu":
-            raise GraphError(f"ids must be {n} integers; got shape {ids.shape}, dtype {ids.dtype}")
+        ids = np.arange(n) if ids is None else vertex_ids(ids, n)
 
         self._poses = _frozen(poses, float)
         self._ids = _frozen(ids, np.int64)
         self._edges = _frozen(edges, np.int64)
         self._measurements = _frozen(measurements, float)
-        # only the symmetric part of an information matrix counts in e^T Omega e; storing it
-        # exactly symmetric (bit-identical for symmetric input) lets writers store one triangle
-        self._information = _frozen(0.5 * (information + np.swapaxes(information, 1, 2)), float)
         self._cache = {}
         self._validate(information)
+        # only the symmetric part of an information matrix counts in e^T Omega e; storing it
+        # exactly symmetric (bit-identical for symmetric input) lets writers store one triangle.
+        # It is checked again: what a reader will check is this matrix, not the one given.
+        sym = 0.5 * (information + np.swapaxes(information, 1, 2))  # validated: cannot overflow
+        self._check_information(sym)
+        self._information = _frozen(sym, float)
 
     # ------------------------------------------------------------------ validation
     def _edge_name(self, k):
@@ -142,21 +203,20 @@ class PoseGraph:
             return f"edge {k} (vertex ids {self._ids[i]} -> {self._ids[j]})"
         return f"edge {k} (indices {i} -> {j})"
 
-    def _check_poses_finite(self):
-        bad = np.flatnonzero(~np.all(np.isfinite(self._poses), axis=1))
-        if bad.size:
-            raise GraphError(
-                f"pose of vertex id {self._ids[bad[0]]} (index {bad[0]}) is not finite: "
-                f"{self._poses[bad[0]].tolist()}; give every vertex finite (x, y, theta)"
-            )
+    def _check_poses(self):
+        check_poses(self._poses, self._ids)
 
     def _validate(self, information):
-        n, m = self.n, self.m
-        self._check_poses_finite()
-        uniq, counts = np.unique(self._ids, return_counts=True)
-        if np.any(counts > 1):
+        n = self.n
+        self._check_poses()
+        order = np.argsort(self._ids, kind="stable")
+        same = np.flatnonzero(self._ids[order[1:]] == self._ids[order[:-1]])
+        if same.size:
+            a, b = sorted(order[[same[0], same[0] + 1]].tolist())
             raise GraphError(
-                f"vertex id {uniq[counts > 1][0]} appears more than once; ids must be unique"
+                f"vertex id {self._ids[a]} appears more than once (indices {a} and {b}); ids "
+                "must be unique",
+                vertex=b,
             )
         out = np.flatnonzero(np.any((self._edges < 0) | (self._edges >= n), axis=1))
         if out.size:
@@ -181,13 +241,24 @@ class PoseGraph:
                 f"{self._edge_name(k)} has a non-finite measurement {self._measurements[k].tolist()}",
                 edge=int(k),
             )
-        if m:
-            k = first_bad_information(information)
-            if k is not None:
-                raise GraphError(
-                    f"{self._edge_name(k)}: {describe_bad_information(information[k])}",
-                    edge=int(k),
-                )
+        big = np.flatnonzero(np.abs(self._measurements[:, 2]) > se2.MAX_ANGLE)
+        if big.size:
+            k = big[0]
+            raise GraphError(
+                f"{self._edge_name(k)} has the measured angle {float(self._measurements[k, 2])!r} "
+                f"rad; |dtheta| must be <= {_ANGLE_BOUND} (float64 cannot reduce larger angles "
+                "consistently, see lagolib.se2): wrap it to (-pi, pi]",
+                edge=int(k),
+            )
+        self._check_information(information)
+
+    def _check_information(self, information):
+        k = first_bad_information(information) if self.m else None
+        if k is not None:
+            raise GraphError(
+                f"{self._edge_name(k)}: {describe_bad_information(information[k])}",
+                edge=int(k),
+            )
 
     # ------------------------------------------------------------------ arrays
     @property
@@ -288,16 +359,20 @@ class PoseGraph:
 
     # ------------------------------------------------------------------ poses
     def with_poses(self, poses):
-        """A new graph with the same edges and other poses (shape (n, 3))."""
-        poses = _numeric(poses, "poses", float)
+        """A new graph with the same edges and other poses (shape (n, 3)).
+
+        The poses are checked as in the constructor: finite, ``|theta| <= 1e9``, real (a
+        GraphError or GraphTypeError names the vertex).
+        """
+        poses = _numeric(poses, "with_poses: poses", float)
         if poses.shape != (self.n, 3):
-            raise GraphError(f"poses must have shape ({self.n}, 3); got {poses.shape}")
+            raise GraphError(f"with_poses: poses must have shape ({self.n}, 3); got {poses.shape}")
         new = object.__new__(PoseGraph)
         new._poses = _frozen(poses, float)
         new._ids, new._edges = self._ids, self._edges
         new._measurements, new._information = self._measurements, self._information
         new._cache = self._cache  # structure only: nothing cached depends on the poses
-        new._check_poses_finite()
+        new._check_poses()
         return new
 
     def odometric_chain(self):
@@ -376,8 +451,52 @@ class PoseGraph:
         return out
 
 
+_INFO_OK, _NON_FINITE, _ASYMMETRIC, _NOT_PD, _OVERFLOW, _UNDERFLOW, _SINGULAR = range(7)
+
+
+def _information_check(information, rtol=1e-9):
+    """Classify each 3x3 information matrix; the eigenvalues are computed without overflow.
+
+    Returns
+    -------
+    code : ndarray of int, shape (m,)
+        ``_INFO_OK`` or the first defect: non-finite entries, asymmetry above ``rtol`` times the
+        largest entry, not positive definite, largest eigenvalue above :data:`MAX_INFORMATION`,
+        smallest below :data:`MIN_INFORMATION`, condition number above
+        :data:`MAX_INFORMATION_CONDITION`.
+    eig : ndarray, shape (m, 3)
+        Eigenvalues of the symmetric part divided by ``scale`` (ascending).
+    scale : ndarray, shape (m,)
+        Largest absolute entry of each matrix (0 for non-finite ones).
+    """
+    info = np.asarray(information, dtype=float)
+    finite = np.all(np.isfinite(info), axis=(1, 2))
+    safe = np.where(finite[:, None, None], info, 0.0)
+    scale = np.max(np.abs(safe), axis=(1, 2), initial=0.0)
+    unit = np.where(scale > 0, scale, 1.0)[:, None, None]
+    with np.errstate(all="ignore"):
+        scaled = safe / unit  # entries in [-1, 1]: nothing below can overflow
+        asym = np.max(np.abs(scaled - np.swapaxes(scaled, 1, 2)), axis=(1, 2), initial=0.0)
+        eig = np.linalg.eigvalsh(0.5 * (scaled + np.swapaxes(scaled, 1, 2)))
+        lo, hi = eig[:, 0], eig[:, -1]
+        code = np.full(len(info), _INFO_OK)
+        # assigned from the least to the most basic defect, so the most basic one wins
+        code[lo < hi / MAX_INFORMATION_CONDITION] = _SINGULAR
+        code[lo < MIN_INFORMATION / unit[:, 0, 0]] = _UNDERFLOW
+        code[hi > MAX_INFORMATION / unit[:, 0, 0]] = _OVERFLOW
+        code[~(lo > 0)] = _NOT_PD
+        code[asym > rtol] = _ASYMMETRIC
+        code[~finite] = _NON_FINITE
+    return code, eig, scale
+
+
 def first_bad_information(information, rtol=1e-9):
-    """Index of the first information matrix that is not symmetric positive definite, or None.
+    """Index of the first information matrix lagolib cannot use, or None.
+
+    A usable matrix is finite, symmetric (up to ``rtol`` times its largest entry), positive
+    definite, has eigenvalues in [:data:`MIN_INFORMATION`, :data:`MAX_INFORMATION`] and a
+    condition number of at most :data:`MAX_INFORMATION_CONDITION`;
+    :func:`describe_bad_information` says which condition fails.
 
     Parameters
     ----------
@@ -385,30 +504,162 @@ def first_bad_information(information, rtol=1e-9):
     rtol : float
         Asymmetry tolerance relative to the largest entry of each matrix.
     """
-    info = np.asarray(information, dtype=float)
-    scale = np.max(np.abs(info), axis=(1, 2))
-    asym = np.max(np.abs(info - np.swapaxes(info, 1, 2)), axis=(1, 2))
-    bad = asym > rtol * scale
-    with np.errstate(invalid="ignore"):
-        eig_min = np.linalg.eigvalsh(0.5 * (info + np.swapaxes(info, 1, 2)))[:, 0]
-    bad |= ~(eig_min > 0)
-    idx = np.flatnonzero(bad)
+    if len(information) == 0:
+        return None
+    code, _, _ = _information_check(information, rtol)
+    idx = np.flatnonzero(code != _INFO_OK)
     return int(idx[0]) if idx.size else None
+
+
+def _times(a, scale):
+    """``a * scale`` printed without overflowing (``a`` of order 1)."""
+    value = a * scale
+    if np.isfinite(value) or a == 0:
+        return f"{value:.3g}"
+    exp10 = np.log10(abs(a)) + np.log10(scale)
+    whole = int(np.floor(exp10))
+    return f"{'-' if a < 0 else ''}{10 ** (exp10 - whole):.3g}e+{whole}"
 
 
 def describe_bad_information(info):
     """One sentence saying why a 3x3 information matrix is rejected, and what to do."""
     info = np.asarray(info, dtype=float)
-    if not np.all(np.isfinite(info)):
-        return f"information matrix has non-finite entries {info.tolist()}"
-    if not np.allclose(info, info.T, rtol=1e-9, atol=0):
-        return f"information matrix is not symmetric: {info.tolist()}"
-    eig = np.linalg.eigvalsh(info)
-    return (
-        f"information matrix is not positive definite (eigenvalues {eig.tolist()}): "
-        f"{info.tolist()}; every measurement needs a positive-definite information matrix "
-        "(check the file's field order: TORO and g2o differ)"
-    )
+    code, eig, scale = _information_check(info[None])
+    code, eig, scale = int(code[0]), eig[0], float(scale[0])
+    eigs = "[" + ", ".join(_times(e, scale) for e in eig) + "]"
+    if code == _NON_FINITE:
+        return (
+            f"information matrix has non-finite entries {info.tolist()}; every entry must be a "
+            "finite number"
+        )
+    if code == _ASYMMETRIC:
+        return (
+            f"information matrix is not symmetric: {info.tolist()}; store a symmetric matrix "
+            "(an asymmetry below 1e-9 of the largest entry is tolerated as rounding)"
+        )
+    if code == _NOT_PD:
+        return (
+            f"information matrix is not positive definite (eigenvalues {eigs}): "
+            f"{info.tolist()}; every measurement needs a positive-definite information matrix "
+            "(check the file's field order: TORO and g2o differ)"
+        )
+    if code == _OVERFLOW:
+        return (
+            f"information matrix overflows float64 arithmetic: its largest eigenvalue "
+            f"{_times(eig[-1], scale)} exceeds {MAX_INFORMATION:g} (a standard deviation below "
+            f"1e-50), so chi2 terms and the Hessian would overflow; rescale it (are the units "
+            f"right?): {info.tolist()}"
+        )
+    if code == _UNDERFLOW:
+        return (
+            f"information matrix underflows: its smallest eigenvalue {_times(eig[0], scale)} is "
+            f"below {MIN_INFORMATION:g} (a standard deviation above 1e50), so the Hessian would "
+            f"underflow to zero; rescale it, or drop the edge if it carries no information: "
+            f"{info.tolist()}"
+        )
+    if code == _SINGULAR:
+        return (
+            f"information matrix is numerically singular: condition number "
+            f"{eig[-1] / eig[0]:.3g} exceeds {MAX_INFORMATION_CONDITION:g} (eigenvalues {eigs}), "
+            "so float64 cannot hold its weakest direction next to its strongest; raise the "
+            f"smallest eigenvalue to at least 1e-14 of the largest: {info.tolist()}"
+        )
+    return f"information matrix is valid: {info.tolist()}"
+
+
+def vertex_ids(ids, n, where="ids"):
+    """Vertex ids as an int64 array of shape (n,), refusing what does not fit exactly.
+
+    Parameters
+    ----------
+    ids : array_like of int, shape (n,)
+    n : int
+        Number of vertices.
+    where : str
+        How the message names the argument.
+
+    Raises
+    ------
+    GraphError
+        For a wrong shape, non-integers, or an id outside the int64 range (never wrapped).
+    GraphTypeError
+        For complex, text or bool ids.
+    """
+    a = _numeric(ids, where, None)
+    if a.dtype.kind == "f" and not isinstance(ids, np.ndarray):
+        # numpy turns a list holding an int beyond int64 (e.g. 2**63) into floats: look again
+        obj = np.empty(len(ids), dtype=object) if np.ndim(ids) == 1 else None
+        if obj is not None:
+            obj[:] = list(ids)
+            if all(isinstance(v, int) and not isinstance(v, bool) for v in obj):
+                a = obj
+    if a.shape != (n,) or a.dtype.kind not in "iuO":
+        raise GraphError(f"{where} must be {n} integers; got shape {a.shape}, dtype {a.dtype}")
+    if a.dtype.kind in "uO" and n:
+        out = [k for k, v in enumerate(a.tolist()) if not _INT64.min <= v <= _INT64.max]
+        if out:
+            raise GraphError(
+                f"{where}: vertex id {a.tolist()[out[0]]} (index {out[0]}) is outside the int64 "
+                f"range [{_INT64.min}, {_INT64.max}] lagolib stores ids in",
+                vertex=out[0],
+            )
+    return a.astype(np.int64)
+
+
+def _edge_indices(edges, n):
+    """Edge index pairs as int64, checked to be integers in ``0..n-1`` before any cast."""
+    kind = edges.dtype.kind
+    if kind == "f":
+        if not (np.all(np.isfinite(edges)) and np.all(edges == np.round(edges))):
+            raise GraphError(f"edges must hold integer vertex indices; got dtype {edges.dtype}")
+    elif kind not in "iuO":
+        raise GraphError(f"edges must hold integer vertex indices; got dtype {edges.dtype}")
+    if kind in "fuO":  # values beyond int64 would wrap in the cast: check the range first
+        out = np.flatnonzero(np.any((edges < 0) | (edges >= n), axis=1))
+        if out.size:
+            k = out[0]
+            raise GraphError(
+                f"edge {k} refers to vertex index {edges[k].tolist()} but the graph has "
+                f"{n} vertices (valid indices 0..{n - 1})",
+                edge=int(k),
+            )
+    return edges.astype(np.int64)
+
+
+def check_poses(poses, ids, what="pose"):
+    """Raise a GraphError naming the vertex when a pose is not finite or its angle is absurd.
+
+    Parameters
+    ----------
+    poses : ndarray, shape (n, 3)
+    ids : ndarray of int, shape (n,)
+        Vertex ids, for the message.
+    what : str
+        How the message names the poses (e.g. ``"initial pose"``).
+
+    Raises
+    ------
+    GraphError
+        ``{what} of vertex id ... (index ...)`` is not finite, or has ``|theta| >``
+        :data:`lagolib.se2.MAX_ANGLE`; ``GraphError.vertex`` is the row index.
+    """
+    bad = np.flatnonzero(~np.all(np.isfinite(poses), axis=1))
+    if bad.size:
+        k = int(bad[0])
+        raise GraphError(
+            f"{what} of vertex id {ids[k]} (index {k}) is not finite: {poses[k].tolist()}; "
+            "give every vertex finite (x, y, theta)",
+            vertex=k,
+        )
+    big = np.flatnonzero(np.abs(poses[:, 2]) > se2.MAX_ANGLE)
+    if big.size:
+        k = int(big[0])
+        raise GraphError(
+            f"{what} of vertex id {ids[k]} (index {k}) has the angle {float(poses[k, 2])!r} rad; "
+            f"|theta| must be <= {_ANGLE_BOUND} (float64 cannot reduce larger angles "
+            "consistently, see lagolib.se2): wrap it to (-pi, pi]",
+            vertex=k,
+        )
 
 
 def _edge_arrays(graph, poses):

@@ -229,3 +229,79 @@ def test_residual_angle_is_wrapped():
 def test_residuals_reject_wrong_pose_shape():
     with pytest.raises(GraphError, match=r"poses must have shape \(4, 3\)"):
         lagolib.chi2(small(), np.zeros((5, 3)))
+
+
+# ----------------------------------------------------------------------------- hardened inputs
+@pytest.mark.parametrize(
+    "inside, outside, problem",
+    [
+        (np.diag([1e100, 1e100, 1e100]), np.diag([1.01e100, 1e99, 1e99]), "overflows"),
+        (np.diag([1e-100, 1e-100, 1e-100]), np.diag([0.99e-100, 1e-100, 1e-100]), "underflows"),
+        (np.diag([1.0, 1.0, 1e-13]), np.diag([1.0, 1.0, 1e-15]), "numerically singular"),
+        (np.diag([1e-100, 1e-100, 1e-100]), np.diag([1e-320, 1e-320, 1e-320]), "underflows"),
+    ],
+)
+def test_information_limits(inside, outside, problem):
+    """Eigenvalues in [1e-100, 1e100] and condition numbers up to 1e14 are accepted."""
+    info = np.tile(np.diag([10.0, 10.0, 100.0]), (4, 1, 1))
+    info[1] = inside
+    assert small(information=info).information[1].tolist() == inside.tolist()
+    info[1] = outside
+    assert lagolib.graph.first_bad_information(info) == 1
+    with pytest.raises(GraphError, match=rf"edge 1 \(vertex ids 1 -> 2\): information .*{problem}"):
+        small(information=info)
+
+
+def test_angle_bound_is_max_angle():
+    bound = se2.MAX_ANGLE
+    assert bound == 1e9
+    ok = small(poses=[[0, 0, 0], [0, 0, bound], [0, 0, -bound], [0, 0, 0]])
+    assert ok.poses[1, 2] == bound
+    beyond = np.nextafter(bound, np.inf)
+    with pytest.raises(
+        GraphError, match=r"vertex id 2 \(index 2\) has the angle -1000000000.0000001"
+    ):
+        small(poses=[[0, 0, 0], [0, 0, 0], [0, 0, -beyond], [0, 0, 0]])
+    with pytest.raises(
+        GraphError, match=r"edge 0 \(vertex ids 0 -> 1\) has the measured angle"
+    ) as exc:
+        small(measurements=[[1, 0, beyond]] + [[1, 0, 0]] * 3)
+    assert exc.value.edge == 0
+    with pytest.raises(GraphError, match=r"vertex id 3 \(index 3\) has the angle"):
+        ok.with_poses([[0, 0, 0]] * 3 + [[0, 0, 1e12]])
+
+
+def test_ids_are_int64_and_never_wrapped():
+    extremes = [-(2**63), 2**63 - 1, 2**53 + 1, 0]
+    assert small(ids=extremes).ids.tolist() == extremes
+    for ids in (np.array([0, 1, 2, 2**63], dtype=np.uint64), [0, 1, 2, 2**63], [0, 1, 2, 2**64]):
+        with pytest.raises(
+            GraphError, match=r"ids: vertex id 1844674407370955161[56]|92233720368"
+        ) as exc:
+            small(ids=ids)
+        assert exc.value.vertex == 3
+
+
+def test_errors_carry_the_vertex_index():
+    with pytest.raises(GraphError) as exc:
+        small(poses=[[0, 0, 0], [0, 0, 0], [0, np.inf, 0], [0, 0, 0]])
+    assert (exc.value.vertex, exc.value.edge) == (2, None)
+    with pytest.raises(GraphError) as exc:
+        small(ids=[5, 6, 5, 7])
+    assert exc.value.vertex == 2
+
+
+def test_complex_and_text_arrays_are_type_errors():
+    from lagolib.errors import GraphTypeError
+
+    for override in (
+        dict(poses=np.zeros((4, 3), dtype=complex)),
+        dict(measurements=np.full((4, 3), 1 + 1e-9j)),
+        dict(information=np.tile(np.eye(3), (4, 1, 1)).astype(complex)),
+        dict(poses=[["0", "0", "0"]] * 4),
+    ):
+        with pytest.raises(GraphTypeError) as exc:
+            small(**override)
+        assert isinstance(exc.value, TypeError)
+    with pytest.raises(GraphTypeError, match=r"poses must be a numeric array of real numbers"):
+        lagolib.chi2(small(), np.zeros((4, 3), dtype=complex))

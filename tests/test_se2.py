@@ -1,5 +1,7 @@
 """SE(2) algebra: identities checked with hypothesis, and against the homogeneous-matrix definitions."""
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -165,3 +167,41 @@ def test_log_is_continuous_at_the_series_switch():
     assert np.ptp(out[:3, 0]) < 1e-14 and np.ptp(out[:3, 1]) < 1e-14
     D = se2.log_jacobian(p)
     assert np.ptp(D[:3], axis=0).max() < 1e-13
+
+
+def test_max_angle_is_where_angle_reductions_stay_consistent():
+    """Below MAX_ANGLE, wrap_angle and the reduction inside cos/sin agree to 1e-7 rad; beyond, the
+    disagreement grows with |theta| (float64's spacing is 1.2e-7 at 1e9, 1.2e-4 at 1e12)."""
+    rng = np.random.default_rng(20)
+
+    def disagreement(limit):
+        theta = rng.uniform(-limit, limit, 20000)
+        d = se2.wrap_angle(se2.wrap_angle(theta) - np.arctan2(np.sin(theta), np.cos(theta)))
+        return np.abs(d).max()
+
+    assert se2.MAX_ANGLE == 1e9
+    assert disagreement(se2.MAX_ANGLE) < 1e-7
+    assert disagreement(1e12) > 1e-6
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda z: se2.wrap_angle(z[:, 2]),
+        lambda z: se2.rotation(z[:, 2]),
+        lambda z: se2.v2t(z),
+        lambda z: se2.compose(z, z.real),
+        lambda z: se2.between(z.real, z),
+        lambda z: se2.inverse(z),
+        lambda z: se2.log(z),
+        lambda z: se2.exp(z),
+        lambda z: se2.log_jacobian(z),
+        lambda z: se2.t2v(np.eye(3) + 1e-3j),
+    ],
+)
+def test_complex_input_is_refused_not_truncated(call):
+    z = np.array([[1.0 + 0.5j, 2.0, 0.3]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's ComplexWarning would mean a silent truncation
+        with pytest.raises(TypeError, match=r"must be real; got a complex array"):
+            call(z)
