@@ -2,7 +2,7 @@
 
 Layers (each imports only from the ones before it)::
 
-    errors, se2 -> checks -> graph -> io, simulate -> datasets -> topology -> linalg -> estimation
+    errors -> se2 -> checks -> graph -> io, simulate -> datasets -> topology -> linalg -> estimation
     -> gauss_newton, lago -> closed_form -> plotting -> uncertainty;   symbolic (sympy only)
 
 Public API
@@ -62,6 +62,7 @@ from .errors import (
     DatasetError,
     GaugeError,
     GraphError,
+    GraphTypeError,
     LagolibError,
     LagolibWarning,
     NotPositiveDefiniteError,
@@ -132,6 +133,7 @@ __all__ = [
     "Prior",
     "LagolibError",
     "GraphError",
+    "GraphTypeError",
     "ParseError",
     "DatasetError",
     "GaugeError",

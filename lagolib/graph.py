@@ -28,6 +28,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from . import se2
+from .checks import check_choice
 from .errors import GraphError, GraphTypeError
 
 __all__ = [
@@ -675,9 +676,8 @@ def _edge_arrays(graph, poses):
 ERRORS = ("t2v", "log")
 
 
-def _check_error(error):
-    if error not in ERRORS:
-        raise GraphError(f"error must be one of {ERRORS}; got {error!r}")
+def _check_error(error, where="residuals"):
+    check_choice(error, "error", where, ERRORS)
 
 
 def residuals(graph, poses=None, *, error="t2v"):

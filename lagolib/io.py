@@ -451,38 +451,30 @@ def _convert_all(*records):
     return out
 
 
-def _rotation_blocks(dtheta):
-    """G = blockdiag(R(dtheta), 1) for each edge, shape (m, 3, 3)."""
-    G = np.zeros((len(dtheta), 3, 3))
-    G[:, :2, :2] = se2.rotation(dtheta)
-    G[:, 2, 2] = 1.0
-    return G
-
-
 def toro_to_g2o_information(information, dtheta):
-    """Convert TORO information matrices (frame-``i`` error) to the g2o convention.
+    """Convert TORO information matrices (frame ``i``) to the g2o frame: ``Gᵀ Ω G``.
 
-    ``Omega_g2o = G^T Omega_toro G`` with ``G = blockdiag(R(dtheta), 1)``: the g2o translational
-    error is ``R(dtheta)^T`` times the frame-``i`` error, so ``e_i = G e_g2o``.
+    ``G = blockdiag(R(dtheta), 1)``: the g2o translational error is ``R(dtheta)ᵀ`` times the
+    frame-``i`` error.  The conversion is :func:`lagolib.se2.information_from_frame_i`.
 
     Parameters
     ----------
     information : ndarray, shape (m, 3, 3)
+        Frame ``i`` (as TORO files store it).
     dtheta : ndarray, shape (m,)
         Measured relative angles.
 
     Returns
     -------
     ndarray, shape (m, 3, 3)
+        g2o frame.
     """
-    G = _rotation_blocks(dtheta)
-    return np.einsum("kba,kbc,kcd->kad", G, information, G)
+    return se2.information_from_frame_i(information, dtheta)
 
 
 def g2o_to_toro_information(information, dtheta):
-    """Inverse of :func:`toro_to_g2o_information`: ``Omega_toro = G Omega_g2o G^T``."""
-    G = _rotation_blocks(dtheta)
-    return np.einsum("kab,kbc,kdc->kad", G, information, G)
+    """Inverse of :func:`toro_to_g2o_information`: ``G Ω Gᵀ`` (:func:`lagolib.se2.information_to_frame_i`)."""
+    return se2.information_to_frame_i(information, dtheta)
 
 
 def _matrices(upper, fmt):

@@ -98,8 +98,9 @@ def frame_i_information(graph):
     frame of the *measured* pose ``Z_ij``.  LAGO's cost (eq. 3, 6) weights the position error in
     the **frame of pose i**, ``R_iᵀ(t_j − t_i) − Δ^l_ij`` (no ``R_zᵀ``).  Since
     ``e = Gᵀ [R_iᵀ(t_j − t_i) − Δ^l_ij; ·]`` with ``G = blockdiag(R(θ_z), 1)``, the same quadratic
-    form in frame ``i`` has the information ``G Ω Gᵀ``.  (TORO files store this frame-``i``
-    information; :func:`lagolib.io.read_toro` applies the inverse rotation ``Gᵀ Ω G``.)
+    form in frame ``i`` has the information ``G Ω Gᵀ`` (:func:`lagolib.se2.information_to_frame_i`;
+    TORO files store this frame-``i`` information, and :func:`lagolib.io.read_toro` applies the
+    inverse, :func:`lagolib.se2.information_from_frame_i`).
 
     Parameters
     ----------
@@ -126,10 +127,7 @@ def frame_i_information(graph):
            [  0., 100.,   0.],
            [  0.,   0.,  10.]])
     """
-    G = np.zeros((graph.m, 3, 3))
-    G[:, :2, :2] = se2.rotation(graph.measurements[:, 2])
-    G[:, 2, 2] = 1.0
-    return G @ graph.information @ np.swapaxes(G, 1, 2)  # G Ω Gᵀ: g2o frame -> frame i
+    return se2.information_to_frame_i(graph.information, graph.measurements[:, 2])  # G Ω Gᵀ
 
 
 def split_information(graph):
@@ -348,7 +346,9 @@ def phase1_orientations(graph, delta_bar, *, anchor=None, omega_delta=None, back
         ``estimate`` has shape (n,), ``information`` (n, n): the graph's vertex rows without the
         anchor.  Unique when the graph is connected (Prop. 1).
     """
-    if not graph.is_connected:  # Prop. 1: A P_δ⁻¹ Aᵀ is singular; say why, not "not positive definite"
+    if (
+        not graph.is_connected
+    ):  # Prop. 1: A P_δ⁻¹ Aᵀ is singular; say why, not "not positive definite"
         raise _disconnected(graph)
     if omega_delta is None:
         omega_delta = split_information(graph)[1]

@@ -9,8 +9,13 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 from lagolib import datasets
+
+# property tests are deterministic: the same examples on every run, no example database
+settings.register_profile("lagolib", derandomize=True, database=None, deadline=None)
+settings.load_profile("lagolib")
 
 
 def _mirror_or_skip():

@@ -9,7 +9,8 @@ import lagolib
 
 # each module may import only from modules in earlier layers (or its own layer's helpers below it)
 LAYERS = [
-    ["errors", "se2"],
+    ["errors"],
+    ["se2"],
     ["checks"],
     ["graph"],
     ["io", "simulate"],

@@ -277,7 +277,7 @@ def test_bad_input_is_rejected_clearly(noisy):
         lagolib.optimize(noisy, fixed=[999])
     with pytest.raises(ValueError, match="method"):
         lagolib.optimize(noisy, method="newton")
-    with pytest.raises(GraphError, match="error must be one of"):
+    with pytest.raises(lagolib.OptionError, match="error must be one of"):
         lagolib.chi2(noisy, error="exp")
     with pytest.raises(GraphError, match="positive definite"):
         lagolib.Prior(0, information=np.diag([1.0, 1.0, -1.0]))
