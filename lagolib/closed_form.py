@@ -43,7 +43,7 @@ import scipy.sparse.linalg as spla
 from . import se2
 from .checks import check_choice, check_int, check_real
 from .errors import ConvergenceError, GraphError, OptionError, OptionTypeError
-from .graph import PoseGraph, _numeric, vertex_rows
+from .graph import PoseGraph, _numeric, as_graph_poses, vertex_rows
 from .lago import lago
 from .linalg import SparseCholesky, solve_spd
 
@@ -353,18 +353,7 @@ def _graph_poses(graph, poses, name="poses"):
     """``graph.poses`` or ``poses`` as a finite (n, 3) array; GraphError naming the vertex."""
     if poses is None:
         return graph.poses
-    if np.iscomplexobj(poses):
-        raise GraphError(f"{name} must be real; got a complex array")
-    poses = _numeric(poses, name, float)
-    if poses.shape != (graph.n, 3):
-        raise GraphError(f"{name} must have shape ({graph.n}, 3); got {poses.shape}")
-    bad = np.flatnonzero(~np.all(np.isfinite(poses), axis=1))
-    if bad.size:
-        raise GraphError(
-            f"{name}: pose of vertex id {graph.ids[bad[0]]} is not finite: "
-            f"{poses[bad[0]].tolist()} ({bad.size} such poses); give every pose finite values"
-        )
-    return poses
+    return as_graph_poses(graph, poses, name)
 
 
 def sincos_residuals(graph, poses=None):

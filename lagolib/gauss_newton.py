@@ -50,6 +50,7 @@ from .graph import (
     PoseGraph,
     _check_error,
     _numeric,
+    as_graph_poses,
     chi2,
     describe_bad_information,
     edge_errors,
@@ -592,16 +593,7 @@ class OptimizeResult:
 
 def _initial(graph, initial, name="initial"):
     """``initial`` as a finite (n, 3) float array (a copy); GraphError naming the vertex if not."""
-    x = _numeric(initial, name, float)
-    if x.shape != (graph.n, 3):
-        raise GraphError(f"{name} must have shape ({graph.n}, 3); got {x.shape}")
-    bad = np.flatnonzero(~np.all(np.isfinite(x), axis=1))
-    if bad.size:
-        raise GraphError(
-            f"{name}: initial guess of vertex id {graph.ids[bad[0]]} is not finite: "
-            f"{x[bad[0]].tolist()} ({bad.size} such poses); give every pose a finite initial guess"
-        )
-    return x.copy()
+    return as_graph_poses(graph, initial, name, "initial guess")
 
 
 METHODS = ("gn", "lm")

@@ -32,6 +32,7 @@ from .checks import check_choice
 from .errors import GraphError, GraphTypeError
 
 __all__ = [
+    "as_graph_poses",
     "PoseGraph",
     "residuals",
     "chi2",
@@ -210,10 +211,9 @@ class PoseGraph:
     def _validate(self, information):
         n = self.n
         self._check_poses()
-        order = np.argsort(self._ids, kind="stable")
-        same = np.flatnonzero(self._ids[order[1:]] == self._ids[order[:-1]])
-        if same.size:
-            a, b = sorted(order[[same[0], same[0] + 1]].tolist())
+        twice = first_duplicate(self._ids)
+        if twice is not None:
+            a, b = twice
             raise GraphError(
                 f"vertex id {self._ids[a]} appears more than once (indices {a} and {b}); ids "
                 "must be unique",
@@ -661,6 +661,43 @@ def check_poses(poses, ids, what="pose"):
             "consistently, see lagolib.se2): wrap it to (-pi, pi]",
             vertex=k,
         )
+
+
+def first_duplicate(ids):
+    """Rows ``(a, b)``, ``a < b``, of the first id that appears twice (by id order), or None."""
+    ids = np.asarray(ids)
+    order = np.argsort(ids, kind="stable")
+    same = np.flatnonzero(ids[order[1:]] == ids[order[:-1]])
+    if not same.size:
+        return None
+    a, b = sorted(order[[same[0], same[0] + 1]].tolist())
+    return a, b
+
+
+def as_graph_poses(graph, poses, name="poses", what="pose"):
+    """``poses`` for ``graph`` as a finite (n, 3) float array (a copy), checked vertex by vertex.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    poses : array_like, shape (graph.n, 3)
+    name : str
+        The argument's name, for the messages (e.g. ``"initial"``).
+    what : str
+        How a message names one pose (e.g. ``"initial guess"``).
+
+    Raises
+    ------
+    GraphTypeError
+        Complex or non-numeric input.
+    GraphError
+        Wrong shape; a non-finite pose or an absurd angle, naming the vertex id (:func:`check_poses`).
+    """
+    x = _numeric(poses, name, float)
+    if x.shape != (graph.n, 3):
+        raise GraphError(f"{name} must have shape ({graph.n}, 3); got {x.shape}")
+    check_poses(x, graph.ids, f"{name}: {what}")
+    return x.copy()
 
 
 def _edge_arrays(graph, poses):

@@ -77,6 +77,7 @@ from .graph import (
     check_poses,
     describe_bad_information,
     first_bad_information,
+    first_duplicate,
     vertex_ids,
 )
 
@@ -826,10 +827,9 @@ def write_poses(path, poses, ids=None):
                 "per pose"
             )
         ids = vertex_ids(ids, n, "write_poses: ids")
-    order = np.argsort(ids, kind="stable")
-    same = np.flatnonzero(ids[order[1:]] == ids[order[:-1]])
-    if same.size:
-        a, b = sorted(order[[same[0], same[0] + 1]].tolist())
+    twice = first_duplicate(ids)
+    if twice is not None:
+        a, b = twice
         raise GraphError(
             f"write_poses: vertex id {ids[a]} is given twice (rows {a} and {b}); ids must be "
             "unique",

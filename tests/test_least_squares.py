@@ -269,7 +269,7 @@ def test_gauge_errors_name_the_component_and_the_fix(noisy):
 def test_bad_input_is_rejected_clearly(noisy):
     bad = noisy.poses.copy()
     bad[5, 1] = np.nan
-    with pytest.raises(GraphError, match="initial guess of vertex id 5 is not finite"):
+    with pytest.raises(GraphError, match=r"initial guess of vertex id 5 \(index 5\) is not finite"):
         lagolib.optimize(noisy, bad)
     with pytest.raises(GraphError, match="shape"):
         lagolib.optimize(noisy, bad[:-1])
