@@ -24,7 +24,7 @@ import numpy as np
 
 from .errors import OptionError, OptionTypeError
 
-__all__ = ["check_int", "check_real", "check_choice", "check_bool"]
+__all__ = ["check_int", "check_real", "check_choice", "check_bool", "real_array"]
 
 
 def check_int(value, name, where, *, minimum=None, maximum=None):
@@ -73,3 +73,13 @@ def check_bool(value, name, where):
     if not isinstance(value, (bool, np.bool_)):
         raise OptionTypeError(f"{where}: {name} must be True or False; got {value!r}")
     return bool(value)
+
+
+def real_array(value, name, where):
+    """``value`` as a float ndarray; complex or non-numeric input is an :class:`OptionTypeError`."""
+    if np.iscomplexobj(value):
+        raise OptionTypeError(f"{where}: {name} must be real; got a complex value")
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise OptionTypeError(f"{where}: {name} must be a real number or array: {exc}") from None

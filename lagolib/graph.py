@@ -219,14 +219,7 @@ class PoseGraph:
                 "must be unique",
                 vertex=b,
             )
-        out = np.flatnonzero(np.any((self._edges < 0) | (self._edges >= n), axis=1))
-        if out.size:
-            k = out[0]
-            raise GraphError(
-                f"edge {k} refers to vertex index {self._edges[k].tolist()} but the graph has "
-                f"{n} vertices (valid indices 0..{n - 1})",
-                edge=int(k),
-            )
+        _check_edge_range(self._edges, n)
         loops = np.flatnonzero(self._edges[:, 0] == self._edges[:, 1])
         if loops.size:
             k = loops[0]
@@ -616,15 +609,20 @@ def _edge_indices(edges, n):
     elif kind not in "iuO":
         raise GraphError(f"edges must hold integer vertex indices; got dtype {edges.dtype}")
     if kind in "fuO":  # values beyond int64 would wrap in the cast: check the range first
-        out = np.flatnonzero(np.any((edges < 0) | (edges >= n), axis=1))
-        if out.size:
-            k = out[0]
-            raise GraphError(
-                f"edge {k} refers to vertex index {edges[k].tolist()} but the graph has "
-                f"{n} vertices (valid indices 0..{n - 1})",
-                edge=int(k),
-            )
+        _check_edge_range(edges, n)
     return edges.astype(np.int64)
+
+
+def _check_edge_range(edges, n):
+    """GraphError naming the first edge whose vertex index is outside ``0..n-1``."""
+    out = np.flatnonzero(np.any((edges < 0) | (edges >= n), axis=1))
+    if out.size:
+        k = out[0]
+        raise GraphError(
+            f"edge {k} refers to vertex index {edges[k].tolist()} but the graph has "
+            f"{n} vertices (valid indices 0..{n - 1})",
+            edge=int(k),
+        )
 
 
 def check_poses(poses, ids, what="pose"):

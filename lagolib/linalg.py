@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .checks import check_bool, check_choice, check_int, check_real
+from .checks import check_bool, check_choice, check_int, check_real, real_array
 from .errors import NotPositiveDefiniteError, OptionError, OptionTypeError
 
 __all__ = [
@@ -81,12 +81,7 @@ def _check_square(H, where="SparseCholesky", *, check=True):
 
 def _check_rhs(b, N, where, *, columns=True, name="b"):
     """``b`` as a finite float array of shape (N,) (or (N, k) with ``columns``)."""
-    if np.iscomplexobj(b):
-        raise OptionTypeError(f"{where}: {name} must be real; got a complex array")
-    try:
-        b = np.asarray(b, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise OptionTypeError(f"{where}: {name} must be a real array: {exc}") from None
+    b = real_array(b, name, where)
     ok = b.shape[:1] == (N,) and (b.ndim == 1 or (columns and b.ndim == 2))
     if not ok:
         shapes = f"({N},) or ({N}, k)" if columns else f"({N},)"

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import se2
-from .checks import check_bool, check_choice, check_int, check_real
+from .checks import check_bool, check_choice, check_int, check_real, real_array
 from .errors import GraphError, OptionError, OptionTypeError
 from .graph import PoseGraph
 
@@ -65,12 +65,7 @@ def _rng(rng, where):
 
 def _sigmas(value, name, where, m):
     """Per-edge standard deviations: finite, > 0, one value or one per edge (shape (m,))."""
-    if np.iscomplexobj(value):
-        raise OptionTypeError(f"{where}: {name} must be real; got a complex value")
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise OptionTypeError(f"{where}: {name} must be a number or an array: {exc}") from None
+    a = real_array(value, name, where)
     if a.ndim > 1 or (a.ndim == 1 and a.shape != (m,)):
         raise OptionError(
             f"{where}: {name} must be one number or {m} (one per edge); got {a.shape}"
