@@ -42,13 +42,11 @@ from .errors import (
     GaugeError,
     GraphError,
     NotPositiveDefiniteError,
-    OptionError,
     OptionTypeError,
 )
 from .graph import (
     ERRORS,
     PoseGraph,
-    _check_error,
     _numeric,
     as_graph_poses,
     chi2,
@@ -112,7 +110,7 @@ def edge_jacobians(p_i, p_j, z, *, error="t2v"):
            [ 0., -1., -1.],
            [ 0.,  0., -1.]])
     """
-    _check_error(error)
+    check_choice(error, "error", "edge_jacobians", ERRORS)
     p_i, p_j, z = np.broadcast_arrays(
         se2._as_poses(p_i, "p_i"), se2._as_poses(p_j, "p_j"), se2._as_poses(z, "z")
     )
@@ -151,7 +149,7 @@ def prior_jacobian(p, mean, *, error="t2v"):
     e : ndarray, shape (..., 3)
     J : ndarray, shape (..., 3, 3)
     """
-    _check_error(error)
+    check_choice(error, "error", "prior_jacobian", ERRORS)
     p, mean = np.broadcast_arrays(se2._as_poses(p), se2._as_poses(mean, "mean"))
     e = se2.between(mean, p)
     c, s = np.cos(mean[..., 2]), np.sin(mean[..., 2])
@@ -313,7 +311,7 @@ def build_linear_system_loop(graph, poses=None, *, prior=None, error="t2v"):
     H : scipy.sparse.csr_matrix, shape (3n, 3n)
     b : ndarray, shape (3n,)
     """
-    x = graph.poses if poses is None else _initial(graph, poses)
+    x = graph.poses if poses is None else as_graph_poses(graph, poses, "poses")
     blocks = {}
     b = np.zeros((graph.n, 3))
 
@@ -406,7 +404,7 @@ class LinearSystem:
     def __init__(self, graph, *, fixed=(), prior=None, error="t2v"):
         if not isinstance(graph, PoseGraph):
             raise TypeError(f"graph must be a PoseGraph; got {type(graph).__name__}")
-        _check_error(error)
+        check_choice(error, "error", "LinearSystem", ERRORS)
         self.graph, self.error = graph, error
         self.priors = _as_priors(prior)
         n = graph.n
@@ -591,11 +589,6 @@ class OptimizeResult:
         )
 
 
-def _initial(graph, initial, name="initial"):
-    """``initial`` as a finite (n, 3) float array (a copy); GraphError naming the vertex if not."""
-    return as_graph_poses(graph, initial, name, "initial guess")
-
-
 METHODS = ("gn", "lm")
 LINEAR_SOLVERS = ("cholesky", "pcg")
 
@@ -660,9 +653,7 @@ class _LevenbergMarquardtDamping:
     method = "lm"
 
     def __init__(self, lambda_initial):
-        if not (math.isfinite(lambda_initial) and lambda_initial > 0):  # the loop's guarantee
-            raise OptionError(f"lambda_initial must be finite and > 0; got {lambda_initial!r}")
-        self.lam = float(lambda_initial)
+        self.lam = float(lambda_initial)  # finite and > 0: optimize checks it
 
     def begin(self):
         """A new iteration: the damping carries over."""
@@ -883,7 +874,11 @@ def optimize(
     max_backtracks = check_int(max_backtracks, "max_backtracks", where, minimum=0)
     verbose = check_bool(verbose, "verbose", where)
     fixed, priors = resolve_gauge(graph, fixed, prior)
-    x = graph.poses.copy() if initial is None else _initial(graph, initial)
+    x = (
+        graph.poses.copy()
+        if initial is None
+        else as_graph_poses(graph, initial, "initial", "initial guess")
+    )
     system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
     solve = _LinearSolver(linear_solver, backend)
     if method == "gn":

@@ -711,10 +711,6 @@ def _edge_arrays(graph, poses):
 ERRORS = ("t2v", "log")
 
 
-def _check_error(error, where="residuals"):
-    check_choice(error, "error", where, ERRORS)
-
-
 def residuals(graph, poses=None, *, error="t2v"):
     """Residual of every edge, ``e_ij = t2v(Z_ij^-1 (X_i^-1 X_j))`` (lecture notes, "The Error Function").
 
@@ -756,7 +752,7 @@ def edge_errors(p_i, p_j, z, *, error="t2v"):
     -------
     ndarray, shape (..., 3)
     """
-    _check_error(error)
+    check_choice(error, "error", "edge_errors", ERRORS)
     z = se2._as_poses(z, "z")
     rel = se2.between(p_i, p_j)  # X_i^-1 X_j, Carlone et al. 2011 eq. (1)
     d = rel[..., :2] - z[..., :2]

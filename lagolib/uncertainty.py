@@ -29,7 +29,6 @@ from .errors import GraphError, OptionTypeError
 from .gauss_newton import (
     LinearSystem,
     _check_finite_system,
-    _initial,
     edge_jacobians,
     resolve_gauge,
 )
@@ -37,6 +36,7 @@ from .graph import (
     ERRORS,
     PoseGraph,
     _numeric,
+    as_graph_poses,
     describe_bad_information,
     first_bad_information,
     vertex_rows,
@@ -65,7 +65,7 @@ def _check_graph(graph, where):
 
 def _poses(graph, poses):
     """``graph.poses`` or ``poses`` checked: shape (n, 3), finite (GraphError naming the vertex)."""
-    return graph.poses if poses is None else _initial(graph, poses, "poses")
+    return graph.poses if poses is None else as_graph_poses(graph, poses, "poses")
 
 
 def information_matrix(graph, poses=None, *, fixed=None, prior=None, error="t2v"):
