@@ -193,9 +193,10 @@ class PoseGraph:
         self._validate(information)
         # only the symmetric part of an information matrix counts in e^T Omega e; storing it
         # exactly symmetric (bit-identical for symmetric input) lets writers store one triangle.
-        # It is checked again: what a reader will check is this matrix, not the one given.
-        sym = 0.5 * (information + np.swapaxes(information, 1, 2))  # validated: cannot overflow
-        self._check_information(sym)
+        # The full check runs on this matrix: it is what a reader of a written file will check.
+        with np.errstate(over="ignore", invalid="ignore"):
+            sym = 0.5 * (information + np.swapaxes(information, 1, 2))
+        self._check_information(sym, shown=information)
         self._information = _frozen(sym, float)
 
     # ------------------------------------------------------------------ validation
@@ -244,15 +245,35 @@ class PoseGraph:
                 "consistently, see lagolib.se2): wrap it to (-pi, pi]",
                 edge=int(k),
             )
-        self._check_information(information)
+        self._check_symmetric(information)
 
-    def _check_information(self, information):
+    def _check_symmetric(self, information, rtol=1e-9):
+        """GraphError for the first matrix whose asymmetry exceeds ``rtol`` times its largest entry.
+
+        Elementwise only (no eigenvalues); non-finite matrices are left to
+        :meth:`_check_information`.
+        """
+        with np.errstate(over="ignore", invalid="ignore"):
+            scale = np.max(np.abs(information), axis=(1, 2), initial=0.0)
+            asym = np.max(
+                np.abs(information - np.swapaxes(information, 1, 2)), axis=(1, 2), initial=0.0
+            )
+            bad = np.flatnonzero(asym > rtol * scale)
+        if bad.size:
+            k = int(bad[0])
+            raise GraphError(
+                f"{self._edge_name(k)}: {describe_bad_information(information[k])}", edge=k
+            )
+
+    def _check_information(self, information, shown=None):
+        """GraphError for the first matrix lagolib cannot use (:func:`first_bad_information`);
+        the message describes ``shown[k]`` (the matrix as given) when that is passed."""
         k = first_bad_information(information) if self.m else None
         if k is not None:
-            raise GraphError(
-                f"{self._edge_name(k)}: {describe_bad_information(information[k])}",
-                edge=int(k),
-            )
+            bad = information[k]
+            if shown is not None and first_bad_information(shown[k : k + 1]) is not None:
+                bad = shown[k]  # the matrix as given is itself unusable: describe that one
+            raise GraphError(f"{self._edge_name(k)}: {describe_bad_information(bad)}", edge=int(k))
 
     # ------------------------------------------------------------------ arrays
     @property
