@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .checks import check_choice
+from .checks import check_choice, real_array
 from .errors import OptionError, OptionTypeError
 from .linalg import BACKENDS, SparseCholesky
 
@@ -37,13 +37,12 @@ __all__ = ["BLUE", "blue", "information_form", "propagate_covariance", "joint_in
 
 
 def _real_array(value, name, where):
-    """``np.asarray(value, float)``, refusing complex and non-numeric input (naming ``name``)."""
-    if np.iscomplexobj(value.data if sp.issparse(value) else value):
+    """A float csr matrix for sparse ``value``, else :func:`lagolib.checks.real_array`."""
+    if not sp.issparse(value):
+        return real_array(value, name, where)
+    if np.iscomplexobj(value.data):
         raise OptionTypeError(f"{where}: {name} must be real; got complex values")
-    try:
-        return sp.csr_matrix(value, dtype=float) if sp.issparse(value) else np.asarray(value, float)
-    except (TypeError, ValueError) as exc:
-        raise OptionTypeError(f"{where}: {name} must be a real array: {exc}") from None
+    return sp.csr_matrix(value, dtype=float)
 
 
 def _check_finite(a, name, where):
