@@ -97,6 +97,7 @@ def __getattr__(name):
         return module
     raise AttributeError(f"module 'lagolib' has no attribute {name!r}")
 
+
 __all__ = [
     "se2",
     "simulate",

@@ -349,20 +349,13 @@ def sincos_poses(poses):
     return np.concatenate([p[..., :2], np.cos(p[..., 2:3]), np.sin(p[..., 2:3])], axis=-1)
 
 
-def _graph_poses(graph, poses, name="poses"):
-    """``graph.poses`` or ``poses`` as a finite (n, 3) array; GraphError naming the vertex."""
-    if poses is None:
-        return graph.poses
-    return as_graph_poses(graph, poses, name)
-
-
 def sincos_residuals(graph, poses=None):
     """``e_ij = f_ij(p) − δ̂_ij`` for every edge (Lodi Rizzini eq. 2–3), shape (m, 4).
 
     ``f_ij = [R_i^T (t_j − t_i); c_j c_i + s_j s_i; s_j c_i − c_j s_i]`` and
     ``δ̂_ij = [x̂, ŷ, cos θ̂, sin θ̂]`` of the edge's measurement.
     """
-    p = sincos_poses(_graph_poses(graph, poses))
+    p = sincos_poses(as_graph_poses(graph, poses))
     pi, pj = p[graph.edges[:, 0]], p[graph.edges[:, 1]]
     ci, si, cj, sj = pi[:, 2], pi[:, 3], pj[:, 2], pj[:, 3]
     dx, dy = pj[:, 0] - pi[:, 0], pj[:, 1] - pi[:, 1]
@@ -443,7 +436,7 @@ def sincos_gradient(graph, poses=None):
     constraint ``c² + s² = 1`` holds by construction, so a stationary point of eq. (7) is a zero
     of this gradient.
     """
-    poses = _graph_poses(graph, poses)
+    poses = as_graph_poses(graph, poses)
     e, Ji, Jj = _theta_jacobians(graph, poses)
     g = np.zeros((graph.n, 3))
     np.add.at(g, graph.edges[:, 0], 2 * np.einsum("kab,ka->kb", Ji, e))
@@ -500,7 +493,7 @@ def optimize_sincos(graph, initial=None, *, fixed=None, max_iterations=100, tol=
         raise OptionTypeError(f"{where}: graph must be a PoseGraph; got {type(graph).__name__}")
     max_iterations = check_int(max_iterations, "max_iterations", where, minimum=0)
     tol = check_real(tol, "tol", where, minimum=0.0)
-    x = _graph_poses(graph, initial, "initial").copy()
+    x = as_graph_poses(graph, initial, "initial")
     n = graph.n
     if fixed is None:
         fixed_row = int(np.argmin(graph.ids))
@@ -899,7 +892,7 @@ def closed_form(graph, initial="lago", *, tol=1e-10, max_iterations=50, if_worse
         initial = check_choice(initial, "initial", where, ("lago", "odometry"))
         guess = lago(graph).poses if initial == "lago" else graph.odometry_guess()
     else:
-        guess = _graph_poses(graph, initial, "initial")
+        guess = as_graph_poses(graph, initial, "initial")
     return solve_orthogonality(
         net,
         net.t_of(guess[net.vertex, 2]),

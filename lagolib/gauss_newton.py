@@ -311,7 +311,7 @@ def build_linear_system_loop(graph, poses=None, *, prior=None, error="t2v"):
     H : scipy.sparse.csr_matrix, shape (3n, 3n)
     b : ndarray, shape (3n,)
     """
-    x = graph.poses if poses is None else as_graph_poses(graph, poses, "poses")
+    x = as_graph_poses(graph, poses)
     blocks = {}
     b = np.zeros((graph.n, 3))
 
@@ -874,11 +874,7 @@ def optimize(
     max_backtracks = check_int(max_backtracks, "max_backtracks", where, minimum=0)
     verbose = check_bool(verbose, "verbose", where)
     fixed, priors = resolve_gauge(graph, fixed, prior)
-    x = (
-        graph.poses.copy()
-        if initial is None
-        else as_graph_poses(graph, initial, "initial", "initial guess")
-    )
+    x = as_graph_poses(graph, initial, "initial", "initial guess")
     system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
     solve = _LinearSolver(linear_solver, backend)
     if method == "gn":

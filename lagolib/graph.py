@@ -699,7 +699,8 @@ def as_graph_poses(graph, poses, name="poses", what="pose"):
     Parameters
     ----------
     graph : PoseGraph
-    poses : array_like, shape (graph.n, 3)
+    poses : array_like, shape (graph.n, 3), or None
+        None stands for ``graph.poses`` (already checked; returned as a copy).
     name : str
         The argument's name, for the messages (e.g. ``"initial"``).
     what : str
@@ -712,6 +713,8 @@ def as_graph_poses(graph, poses, name="poses", what="pose"):
     GraphError
         Wrong shape; a non-finite pose or an absurd angle, naming the vertex id (:func:`check_poses`).
     """
+    if poses is None:
+        return graph.poses.copy()
     x = _numeric(poses, name, float)
     if x.shape != (graph.n, 3):
         raise GraphError(f"{name} must have shape ({graph.n}, 3); got {x.shape}")

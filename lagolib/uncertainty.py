@@ -63,11 +63,6 @@ def _check_graph(graph, where):
         raise OptionTypeError(f"{where}: graph must be a PoseGraph; got {type(graph).__name__}")
 
 
-def _poses(graph, poses):
-    """``graph.poses`` or ``poses`` checked: shape (n, 3), finite (GraphError naming the vertex)."""
-    return graph.poses if poses is None else as_graph_poses(graph, poses, "poses")
-
-
 def information_matrix(graph, poses=None, *, fixed=None, prior=None, error="t2v"):
     """``H`` of the free poses at ``poses`` (lecture notes, "Uncertainty").
 
@@ -88,7 +83,7 @@ def information_matrix(graph, poses=None, *, fixed=None, prior=None, error="t2v"
     """
     _check_graph(graph, "information_matrix")
     error = check_choice(error, "error", "information_matrix", ERRORS)
-    x = _poses(graph, poses)
+    x = as_graph_poses(graph, poses)
     fixed, priors = resolve_gauge(graph, fixed, prior)
     system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
     H, _, _ = system.assemble(x)
@@ -158,7 +153,7 @@ def marginal_covariances(
     frame = check_choice(frame, "frame", where, FRAMES)
     backend = check_choice(backend, "backend", where, ("auto",) + BACKENDS)
     batch = check_int(batch, "batch", where, minimum=1)
-    x = _poses(graph, poses)
+    x = as_graph_poses(graph, poses)
     idx = (
         np.arange(graph.n)
         if vertices is None
@@ -276,7 +271,7 @@ def loop_closure_test(
     error = check_choice(error, "error", where, ERRORS)
     (ki,) = vertex_rows(graph, [i], f"{where}: i")
     (kj,) = vertex_rows(graph, [j], f"{where}: j")
-    x = _poses(graph, poses)
+    x = as_graph_poses(graph, poses)
     for name, value in (("measurement", measurement), ("information", information)):
         if np.iscomplexobj(value):
             raise GraphError(f"{where}: {name} must be real; got a complex array")
