@@ -73,8 +73,8 @@ __all__ = [
 
 # ----------------------------------------------------------------------------- Jacobians
 def edge_jacobians(p_i, p_j, z, *, error="t2v"):
-    """Error ``e_ij`` and its Jacobian blocks ``A_ij``, ``B_ij`` (lecture notes, "Compute the blocks
-    of the Jacobian").
+    """Error ``e_ij`` and its Jacobian blocks ``A_ij``, ``B_ij`` (lecture notes, "Linearizing the
+    error function" and "Building the Linear system": "Compute the blocks of the Jacobian").
 
     For ``error="t2v"``, with ``R_iz = R(theta_i + theta_z)`` and ``dt = t_j - t_i``::
 
@@ -375,6 +375,9 @@ def reduce_system(graph, H, b, fixed):
 
 class LinearSystem:
     """``H`` and ``b`` for all constraints at once, in a sparsity pattern computed once.
+
+    Lecture notes, "The Linear system": ``H = Σ J_ij^T Ω_ij J_ij``, ``b = Σ J_ij^T Ω_ij e_ij``,
+    block-sparse as "Consequences of the Sparsity" shows.
 
     The pattern — which 3x3 blocks of ``H`` are non-zero — depends only on the edges, the fixed
     poses and the priors, so it is computed in the constructor (a ``np.unique`` over the block

@@ -110,7 +110,8 @@ def _frozen(a, dtype):
 
 
 class PoseGraph:
-    """An immutable planar pose graph.
+    """An immutable planar pose graph (lecture notes, "The Graph", "Pose Graph" and "The Edge
+    Information matrices").
 
     Parameters
     ----------

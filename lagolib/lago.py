@@ -325,7 +325,7 @@ def _free_rows(graph, root):
 
 
 def phase1_orientations(graph, delta_bar, *, anchor=None, omega_delta=None, backend="auto"):
-    """Phase 1: the BLUE of the orientations (Carlone et al. 2011, §IV-B, eq. 13).
+    """Phase 1: the BLUE of the orientations from ``A^T θ = δ̄`` (Carlone et al. 2011, eq. 8, 13).
 
     ``θ̂ = (A P_δ^-1 A^T)^-1 A P_δ^-1 δ̄``, ``P_θ̂^-1 = A P_δ^-1 A^T``.
 
@@ -481,6 +481,7 @@ def phase3_poses(graph, phase2, *, anchor=None, backend="auto"):
     """Phase 3: the BLUE of ``p = [ρ; θ]`` from ``z = B^T p`` (Carlone et al. 2011, eq. 12, 15).
 
     ``p* = (B P_z^-1 B^T)^-1 B P_z^-1 z`` with ``B = [[A2, 0], [0, I_n]]``; ``I_p* = B P_z^-1 B^T``.
+    ``z = B^T p`` is eq. 7 (``A2^T ρ = R(θ) Δ^l``, ``A^T θ = δ``) with ``R(θ)`` taken at ``θ̂``.
 
     Parameters
     ----------

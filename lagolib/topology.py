@@ -384,6 +384,9 @@ def bfs_tree(graph, anchor=None):
 def spanning_tree(graph, tree="odometric", anchor=None):
     """A spanning tree by name, or a given :class:`SpanningTree` checked against the graph.
 
+    A spanning tree exists because the pose graph is connected (Carlone et al. 2011, Lemma 1); a
+    disconnected graph raises :class:`~lagolib.errors.GraphError` naming its components.
+
     Parameters
     ----------
     graph : PoseGraph
@@ -594,7 +597,7 @@ class CycleBasis:
 
     @property
     def ordered(self):
-        """𝒞 with columns in :attr:`edge_order`: the form ``[I_d ℬ]`` of eq. 19."""
+        """𝒞 with columns in :attr:`edge_order`: the form ``[I_d ℬ]`` of eq. 19 (Cor. 2)."""
         return self.C[:, self.edge_order]
 
     @property

@@ -154,3 +154,58 @@ def test_chapter_offline(path, tmp_path):
     assert not any(cache.iterdir()), (
         f"{path.name}: wrote {list(cache.iterdir())} to the cache offline"
     )
+
+
+def _code(nb):
+    """The chapter's code cells, IPython magics and shell escapes blanked."""
+    for k, cell in enumerate(nb.cells):
+        if cell.cell_type == "code":
+            lines = [
+                "" if line.lstrip().startswith(("%", "!")) else line
+                for line in cell.source.splitlines()
+            ]
+            yield k, "\n".join(lines)
+
+
+@pytest.mark.parametrize("path", CHAPTERS, ids=_ids(CHAPTERS))
+def test_chapter_uses_only_the_public_api(path):
+    """No private module, function or attribute of lagolib (a leading underscore) in a chapter."""
+    import ast
+
+    bad = []
+    for k, code in _code(_read(path)):
+        tree = ast.parse(code)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("lagolib"):
+                parts = node.module.split(".") + [a.name for a in node.names]
+                bad += [f"cell {k}: from {node.module} import {p}" for p in parts if p[:1] == "_"]
+            elif isinstance(node, ast.Import):
+                for a in node.names:
+                    if a.name.startswith("lagolib") and any(
+                        p[:1] == "_" for p in a.name.split(".")
+                    ):
+                        bad.append(f"cell {k}: import {a.name}")
+            elif isinstance(node, ast.Attribute):
+                private = node.attr.startswith("_") and not node.attr.startswith("__")
+                if private:
+                    bad.append(f"cell {k}: .{node.attr}")
+    assert not bad, f"{path.name} reaches into lagolib's private API: {bad}"
+
+
+@pytest.mark.parametrize("path", CHAPTERS, ids=_ids(CHAPTERS))
+def test_random_generators_are_seeded(path):
+    """Every generator is seeded: no default_rng() without a seed, no legacy global np.random."""
+    import re
+
+    bad = []
+    for k, code in _code(_read(path)):
+        if re.search(r"default_rng\(\s*\)", code):
+            bad.append(f"cell {k}: default_rng() without a seed")
+        legacy = re.findall(
+            r"np\.random\.(rand|randn|normal|uniform|random|randint|choice|shuffle|permutation)\(",
+            code,
+        )
+        bad += [f"cell {k}: np.random.{f}() uses the unseeded global generator" for f in legacy]
+        if re.search(r"^\s*import random\b|^\s*from random import", code, re.M):
+            bad.append(f"cell {k}: Python's random module")
+    assert not bad, f"{path.name}: {bad}"

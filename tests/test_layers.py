@@ -22,6 +22,8 @@ LAYERS = [
     ["closed_form"],
     ["plotting"],
     ["uncertainty"],
+    ["book"],
+    ["cli"],
 ]
 RANK = {name: k for k, layer in enumerate(LAYERS) for name in layer}
 ROOT = Path(lagolib.__file__).parent
@@ -42,6 +44,24 @@ def test_module_imports_only_earlier_layers(module):
     for dep in _imports(ROOT / f"{module}.py"):
         assert dep in RANK, f"{module} imports {dep}, which is not in a layer"
         assert RANK[dep] < RANK[module], f"{module} (layer {RANK[module]}) imports {dep}"
+
+
+def test_exercises_are_on_top():
+    """lagolib.exercises (the book's checks) may use all of lagolib; nothing in lagolib uses it."""
+    for path in ROOT.glob("*.py"):
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            names = []
+            if isinstance(node, ast.ImportFrom):
+                names = [f"{'.' * node.level}{node.module or ''}"]
+                names += [f"{names[0]}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            assert not any("exercises" in n for n in names), f"{path.name} imports {names}"
+    for path in (ROOT / "exercises").glob("*.py"):
+        tree = ast.parse(path.read_text())
+        relative = [n for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.level > 1]
+        assert not relative, f"exercises/{path.name}: import lagolib's API absolutely"
 
 
 def test_every_module_has_a_layer():

@@ -1,0 +1,71 @@
+"""Checks for the book's exercises, one module per chapter (``lagolib.exercises.ch06``, …).
+
+A chapter imports its module, e.g. ``from lagolib.exercises import ch06``, and each exercise cell is
+followed by a check such as ``ch06.check_phase1(phase1)``.  A check compares the answer with
+lagolib's own implementation, prints one line that starts with ``Exercise <id>`` — *correct*, *not
+yet* (what is wrong, by how much, and a hint) or *not attempted yet* (the stub is still as given) —
+and returns ``True`` or ``False``; it never raises on a wrong answer.  :func:`passed` tells whether
+an exercise's last check said correct (the full notebooks assert it in a cell hidden from the
+rendered book and dropped from the student copies).
+
+The conventions that tie a chapter's exercise, solution, check and student stub together are in
+:mod:`lagolib.book`, which also writes the student copies.
+
+>>> from lagolib.exercises import compare_int, verdict
+>>> verdict("0.1", compare_int(4, 5, name="the number of chords"), hint="count the chords")
+Exercise 0.1 — not yet: the number of chords is 4: that is 1 fewer than the reference.
+    Hint: count the chords
+False
+>>> verdict("0.1", compare_int(..., 5))  # doctest: +ELLIPSIS
+Exercise 0.1 — not attempted yet: replace the placeholder (`...`) in the cell above with ...
+False
+>>> passed("0.1")
+False
+"""
+
+import importlib
+
+from lagolib.exercises._feedback import (
+    NOT_ATTEMPTED,
+    call_student,
+    check,
+    compare_array,
+    compare_choice,
+    compare_int,
+    compare_number,
+    is_placeholder,
+    not_attempted,
+    passed,
+    reset,
+    results,
+    verdict,
+)
+
+CHAPTERS = ("ch01", "ch02", "ch03", "ch04", "ch05", "ch06", "ch07")
+
+__all__ = [
+    "CHAPTERS",
+    "NOT_ATTEMPTED",
+    "call_student",
+    "check",
+    "compare_array",
+    "compare_choice",
+    "compare_int",
+    "compare_number",
+    "is_placeholder",
+    "not_attempted",
+    "passed",
+    "reset",
+    "results",
+    "verdict",
+    *CHAPTERS,
+]
+
+
+def __getattr__(name):
+    # chapter modules load on first use (importing lagolib.exercises stays light)
+    if name in CHAPTERS:
+        module = importlib.import_module(f"{__name__}.{name}")
+        globals()[name] = module
+        return module
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,223 @@
+"""The book's exercises follow the classroom conventions, and student copies run.
+
+Structure (every chapter ``book/NN_*.ipynb`` with NN >= 01, read as JSON): at least three
+exercises, of all three kinds (implement, predict, explore); each is the run of cells
+:mod:`lagolib.book` defines — statement, solution with its stub, a check from
+``lagolib.exercises.chNN``, the hidden ``assert passed(id)``, and the folded "Solution and
+discussion" — and the chapter links back to the preface.
+
+Student copies (``lagolib.book.write_student_copies``): no solution is left in them; executed
+offline in a kernel, each runs to the end and every check reports "not attempted yet".  With the
+solutions injected back (:func:`lagolib.book.inject_solutions`), every check reports correct.
+"""
+
+import ast
+import importlib
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from test_book import execute, kernel_env
+
+from lagolib import book as lbook
+from lagolib.exercises import NOT_ATTEMPTED
+
+ROOT = Path(__file__).resolve().parent.parent
+BOOK = ROOT / "book"
+CHAPTERS = sorted(p for p in BOOK.glob("[0-9][0-9]_*.ipynb") if int(p.name[:2]) >= 1)
+
+
+def _ids(paths):
+    return [p.stem for p in paths]
+
+
+def _load(path):
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def _src(cell):
+    s = cell.get("source", "")
+    return "".join(s) if isinstance(s, list) else s
+
+
+def _tags(cell):
+    return cell.get("metadata", {}).get("tags", [])
+
+
+def _outputs_text(nb):
+    out = []
+    for cell in nb.cells:
+        for o in cell.get("outputs", []):
+            if o.get("output_type") == "stream":
+                out.append(o.get("text", ""))
+            elif "data" in o and "text/plain" in o["data"]:
+                out.append(o["data"]["text/plain"])
+    return "".join(out)
+
+
+@pytest.mark.parametrize("path", CHAPTERS, ids=_ids(CHAPTERS))
+def test_exercises_follow_the_conventions(path):
+    nb = _load(path)
+    cells = nb["cells"]
+    chapter = int(path.name[:2])
+    module = importlib.import_module(f"lagolib.exercises.ch{chapter:02d}")
+    found = lbook.exercises(nb, path.name)
+    assert len(found) >= 3, f"{path.name}: {len(found)} exercises; at least 3 are required"
+    kinds = {e["kind"] for e in found}
+    assert kinds == set(lbook.KINDS), f"{path.name}: kinds {sorted(kinds)}; need {lbook.KINDS}"
+    ids = [e["id"] for e in found]
+    assert len(set(ids)) == len(ids), f"{path.name}: duplicate exercise ids {ids}"
+    bounds = [e["cell"] for e in found] + [len(cells)]
+    for e, end in zip(found, bounds[1:]):
+        where = f"{path.name}, exercise {e['id']}"
+        assert e["id"].startswith(f"{chapter}."), f"{where}: id should start with {chapter}."
+        statement = _src(cells[e["cell"]])
+        label = {"implement": "implement", "predict": "predict", "explore": "explore"}[e["kind"]]
+        assert re.match(rf"\*\*Exercise {re.escape(e['id'])} \({label}", statement), (
+            f"{where}: the statement should start with **Exercise {e['id']} ({label}…).**"
+        )
+        block = cells[e["cell"] + 1 : end]
+        # given cells (data, a slider) may sit between the statement and the solution
+        first = next((k for k, c in enumerate(block) if "solution" in _tags(c)), None)
+        assert first is not None, f"{where}: no cell tagged solution"
+        given, block = block[:first], block[first:]
+        assert not any(re.search(r"\.check_\w+\(", _src(c)) for c in given), (
+            f"{where}: a check runs before the solution"
+        )
+        solution = block[0]
+        assert solution.get("cell_type") == "code", (
+            f"{where}: the first cell tagged solution must be the code solution"
+        )
+        assert "hide-cell" in _tags(solution), f"{where}: the solution is not folded (hide-cell)"
+        stub = solution.get("metadata", {}).get("lagolib", {}).get("stub", "")
+        assert lbook.STUB_MARK in stub and "..." in stub, f"{where}: stub lacks the mark or ..."
+        ast.parse(stub)
+        assert stub.strip() != _src(solution).strip(), f"{where}: the stub is the solution"
+        checks = [c for c in block if c["cell_type"] == "code" and "solution" not in _tags(c)]
+        calls = re.findall(rf"ch{chapter:02d}\.(check_\w+)\(", "".join(map(_src, checks)))
+        assert calls, f"{where}: no ch{chapter:02d}.check_…(…) call after the solution"
+        for name in calls:
+            assert callable(getattr(module, name, None)), f"{where}: {name} does not exist"
+        asserts = [c for c in block if lbook.CHECK_TAG in _tags(c)]
+        assert len(asserts) == 1 and "remove-cell" in _tags(asserts[0]), (
+            f"{where}: one cell tagged solution-check and remove-cell is required"
+        )
+        assert _src(asserts[0]).strip() == f'assert passed("{e["id"]}")', where
+        discussion = [c for c in block if c["cell_type"] == "markdown" and "solution" in _tags(c)]
+        assert len(discussion) == 1, f"{where}: one 'Solution and discussion' cell is required"
+        text = _src(discussion[0]).strip()
+        assert text.startswith("<details>") and text.endswith("</details>"), where
+        assert "<summary>Solution and discussion</summary>" in text, where
+        words = len(re.sub(r"<[^>]+>", " ", text).split())
+        assert words >= 40, f"{where}: the discussion has {words} words; explain the solution"
+
+
+@pytest.mark.parametrize("path", CHAPTERS, ids=_ids(CHAPTERS))
+def test_chapter_links_to_the_preface(path):
+    first = next(c for c in _load(path)["cells"] if c["cell_type"] == "markdown")
+    assert "(00_preface.ipynb)" in _src(first), f"{path.name}: link the preface in the first cell"
+
+
+def test_student_copy_removes_every_solution(tmp_path):
+    written = lbook.write_student_copies(BOOK, tmp_path)
+    assert [p.name for p in written] == sorted(p.name for p in BOOK.glob("*.ipynb"))
+    for path in written:
+        full, student = _load(BOOK / path.name), _load(path)
+        for cell in student["cells"]:
+            assert "solution" not in _tags(cell) and lbook.CHECK_TAG not in _tags(cell)
+            assert not cell.get("outputs") and cell.get("execution_count") is None
+        solutions = [c for c in full["cells"] if "solution" in _tags(c)]
+        stubs = [c for c in student["cells"] if "solution" in c["metadata"].get("lagolib", {})]
+        assert len(stubs) == len(solutions), path.name
+        for stub, sol in zip(stubs, solutions):
+            if sol["cell_type"] == "code":
+                assert _src(stub) == sol["metadata"]["lagolib"]["stub"]
+            assert _src(stub) != _src(sol)
+        # injecting the solutions back gives the chapter without its hidden assertions
+        back = lbook.inject_solutions(student, full)
+        kept = [c for c in full["cells"] if lbook.CHECK_TAG not in _tags(c)]
+        assert [(c["cell_type"], _src(c), _tags(c)) for c in back["cells"]] == [
+            (c["cell_type"], _src(c), _tags(c)) for c in kept
+        ], path.name
+
+
+@pytest.fixture(scope="module")
+def copies(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("student-copies")
+    lbook.write_student_copies(BOOK, folder)
+    return folder
+
+
+@pytest.mark.book
+@pytest.mark.parametrize("path", CHAPTERS, ids=_ids(CHAPTERS))
+def test_student_copy_runs_and_nothing_is_attempted(path, copies, tmp_path):
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    target = copies / path.name
+    nb = execute(target, kernel_env("offline", cache))
+    text = _outputs_text(nb)
+    for e in lbook.exercises(_load(path), path.name):
+        assert f"Exercise {e['id']} — {NOT_ATTEMPTED}" in text, (
+            f"{path.name}: the student copy's check of exercise {e['id']} did not report "
+            f"'{NOT_ATTEMPTED}'"
+        )
+    assert " — correct" not in text, f"{path.name}: a student copy's check said correct"
+
+
+@pytest.mark.book
+@pytest.mark.parametrize("path", CHAPTERS, ids=_ids(CHAPTERS))
+def test_solutions_injected_back_pass_every_check(path, copies, tmp_path):
+    student = _load(copies / path.name)
+    injected = lbook.inject_solutions(student, _load(path))
+    target = tmp_path / path.name
+    target.write_text(json.dumps(injected), encoding="utf-8")
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    text = _outputs_text(execute(target, kernel_env("offline", cache)))
+    for e in lbook.exercises(injected, path.name):
+        assert f"Exercise {e['id']} — correct" in text, (
+            f"{path.name}: with the solutions injected, exercise {e['id']} is not correct"
+        )
+    assert "— not yet" not in text and NOT_ATTEMPTED not in text, path.name
+
+
+def test_command_line(tmp_path):
+    out = tmp_path / "copies"
+    proc = subprocess.run(
+        [sys.executable, "-m", "lagolib.book", "student-copies", str(out), "--book", str(BOOK)],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 0, proc.stderr
+    n = sum(len(lbook.exercises(_load(p))) for p in CHAPTERS)
+    assert proc.stdout.strip() == (
+        f"wrote {len(list(BOOK.glob('*.ipynb')))} chapters with {n} exercises to {out}"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-m", "lagolib.book", "student-copies", str(out), "--book", str(tmp_path)],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 2 and "holds no chapters" in proc.stderr
+    proc = subprocess.run(
+        [sys.executable, "-m", "lagolib.book", "student-copies", str(BOOK), "--book", str(BOOK)],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 2 and "out_dir is the book itself" in proc.stderr
+
+
+def test_malformed_exercises_are_named():
+    nb = {"cells": [{"cell_type": "markdown", "metadata": {"lagolib": {"exercise": "9.1"}}}]}
+    with pytest.raises(ValueError, match=r"ch09.ipynb: cell 0: exercise '9.1' has kind None"):
+        lbook.exercises(nb, "ch09.ipynb")
+    nb = {
+        "cells": [
+            {"cell_type": "code", "metadata": {"tags": ["solution"]}, "source": "x = 1"},
+        ]
+    }
+    with pytest.raises(ValueError, match=r"ch09.ipynb: cell 0: a solution code cell needs"):
+        lbook.student_copy(nb, "ch09.ipynb")
