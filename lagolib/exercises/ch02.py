@@ -1,0 +1,491 @@
+"""Checks for the exercises of chapter 2, least-squares graph SLAM (lecture notes, "Least Square SLAM").
+
+* Exercise 2.1 (implement) — :func:`check_jacobians`: the Jacobian blocks ``A_ij``, ``B_ij`` of one
+  edge ("Compute the blocks of the Jacobian"), against :func:`lagolib.gauss_newton.edge_jacobians`
+  and central finite differences of the error.
+* Exercise 2.2 (implement) — :func:`check_edge_contribution`: what one edge adds to ``H`` and ``b``
+  ("Building the Linear System", steps 3 and 4), against
+  :func:`lagolib.gauss_newton.build_linear_system_loop`, with an anisotropic, rotated ``Omega``.
+* Exercise 2.3 (predict) — :func:`check_structure`: the number of non-zero 3x3 blocks of ``H`` and
+  the dimension of its null space for the graph of :func:`structure_graph` (no gauge).
+* Exercise 2.4 (explore) — :func:`check_damping`: how Levenberg–Marquardt's initial damping changes
+  the number of iterations and the optimum (:func:`damping_sweep`).
+
+Every check prints one line starting ``Exercise 2.k`` (see :mod:`lagolib.exercises`) and returns
+True or False; none raises on a wrong answer.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lagolib import PoseGraph, datasets, optimize, se2
+from lagolib.exercises._feedback import (
+    NOT_ATTEMPTED,
+    call_student,
+    check,
+    compare_array,
+    compare_choice,
+    compare_int,
+    is_placeholder,
+    verdict,
+)
+from lagolib.gauss_newton import LinearSystem, build_linear_system_loop, edge_jacobians
+from lagolib.graph import edge_errors
+
+__all__ = [
+    "check_jacobians",
+    "check_edge_contribution",
+    "structure_graph",
+    "check_structure",
+    "DAMPING_LAMBDAS",
+    "damping_sweep",
+    "check_damping",
+]
+
+_RTOL, _ATOL = 1e-7, 1e-9
+
+
+def _close(a, b, rtol=_RTOL, atol=_ATOL) -> bool:
+    """Same shape and equal within ``atol + rtol |b|`` (False for anything not numeric)."""
+    try:
+        a = np.asarray(a, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    b = np.asarray(b, dtype=float)
+    return a.shape == b.shape and bool(np.all(np.abs(a - b) <= atol + rtol * np.abs(b)))
+
+
+def _pair(out, n, what):
+    """``out`` as a tuple of ``n`` items, or the sentence saying why it is not one."""
+    if isinstance(out, (tuple, list)) or (isinstance(out, np.ndarray) and out.ndim >= 1):
+        if len(out) == n:
+            return tuple(out), None
+    sized = isinstance(out, (tuple, list)) or (isinstance(out, np.ndarray) and out.ndim >= 1)
+    size = f" of length {len(out)}" if sized else ""
+    return None, f"it should return {what}; it returned a {type(out).__name__}{size}."
+
+
+# ----------------------------------------------------------------------------- exercise 2.1
+def _jacobian_cases():
+    """Five seeded edges ``(p_i, p_j, z)``: positions within ±5 m, any headings."""
+    rng = np.random.default_rng(2021)
+    cases = []
+    for _ in range(5):
+        p_i, p_j, z = rng.uniform(-1.0, 1.0, size=(3, 3)) * [5.0, 5.0, np.pi]
+        cases.append((p_i, p_j, z))
+    return cases
+
+
+def _finite_differences(p_i, p_j, z, h=1e-6):
+    """Central differences of ``e_ij`` with respect to ``x_i`` and ``x_j`` (angle wrapped)."""
+
+    def diff(which):
+        cols = []
+        for u in np.eye(3):
+            plus = [p_i, p_j]
+            minus = [p_i, p_j]
+            plus[which] = plus[which] + h * u
+            minus[which] = minus[which] - h * u
+            d = edge_errors(plus[0], plus[1], z) - edge_errors(minus[0], minus[1], z)
+            d[2] = se2.wrap_angle(d[2])
+            cols.append(d / (2 * h))
+        return np.column_stack(cols)
+
+    return diff(0), diff(1)
+
+
+def _jacobian_problem(A, B, p_i, p_j, z):
+    """None if ``(A, B)`` are the blocks of the edge, else the sentence saying what is wrong."""
+    _, A_ref, B_ref = edge_jacobians(p_i, p_j, z)
+    for name, got in (("A_ij", A), ("B_ij", B)):
+        if is_placeholder(got):
+            return NOT_ATTEMPTED
+        try:
+            shape = np.shape(np.asarray(got, dtype=float))
+        except (TypeError, ValueError):
+            return f"{name} should be a 3x3 array of numbers, got {got!r:.80}."
+        if shape != (3, 3):
+            return f"{name} has shape {shape}, expected (3, 3)."
+    if _close(A, B_ref) and _close(B, A_ref):
+        return (
+            "A and B are swapped: A_ij = de/dx_i is the block with the extra third column "
+            "(turning x_i swings x_j around it); B_ij = de/dx_j is just a rotation."
+        )
+    # the rotation of x_i alone instead of x_i's heading plus the measured one
+    _, A_alt, B_alt = edge_jacobians(p_i, p_j, np.asarray(z) * [1.0, 1.0, 0.0])
+    for name, got, ref, alt in (("A_ij", A, A_ref, A_alt), ("B_ij", B, B_ref, B_alt)):
+        if _close(got, ref):
+            continue
+        if _close(got, alt):
+            return (
+                f"{name} uses the rotation R(theta_i); the error is expressed in the frame of the "
+                "measurement, so the rotation is R(theta_i + theta_z)."
+            )
+        if name == "A_ij" and _close(np.asarray(got, float)[:, :2], ref[:, :2]):
+            col = np.asarray(got, float)[:, 2]
+            if _close(col[:2], ref[:2, 2]):
+                return (
+                    f"A_ij is right except its entry [2, 2], de_theta/dtheta_i: yours {col[2]:.6g}, "
+                    f"expected {ref[2, 2]:.6g}. The angle error theta_j - theta_i - theta_z "
+                    "falls one for one as theta_i grows."
+                )
+            return (
+                f"A_ij's first two columns are right, its third column de/dtheta_i is not: yours "
+                f"{np.round(col, 6).tolist()}, expected {np.round(ref[:, 2], 6).tolist()} (how "
+                "turning x_i moves x_j as seen from x_i, rotated into the measurement's frame)."
+            )
+        return compare_array(got, ref, name=name)
+    return None
+
+
+@check("2.1")
+def check_jacobians(jacobian_blocks) -> bool:
+    """Exercise 2.1: the Jacobian blocks of one edge.
+
+    Calls ``jacobian_blocks(p_i, p_j, z)`` (each a pose ``(x, y, theta)``, shape (3,)) on five
+    seeded random edges and compares the returned ``(A, B)``, each shape (3, 3), with
+    ``A_ij = de_ij/dx_i`` and ``B_ij = de_ij/dx_j`` of :func:`lagolib.gauss_newton.edge_jacobians`
+    (lecture notes, "Compute the blocks of the Jacobian") and with central finite differences of
+    the error ``e_ij = t2v(Z_ij^-1 X_i^-1 X_j)``.  Diagnoses swapped blocks, a transpose, a flipped
+    sign, ``R(theta_i)`` in place of ``R(theta_i + theta_z)`` and a wrong third column of ``A``.
+
+    Returns
+    -------
+    bool
+        Whether every block matched (also recorded for :func:`lagolib.exercises.passed`).
+    """
+    hint = (
+        "compare with the sympy matrices d.A and d.B printed in section 1: with "
+        "c = cos(theta_i + theta_z), s = sin(theta_i + theta_z), B_ij = [[c, s, 0], [-s, c, 0], "
+        "[0, 0, 1]], and A_ij = -B_ij except its third column."
+    )
+    worst_ref = worst_fd = 0.0
+    cases = _jacobian_cases()
+    for k, (p_i, p_j, z) in enumerate(cases):
+        out, problem = call_student(
+            jacobian_blocks, p_i.copy(), p_j.copy(), z.copy(), name="jacobian_blocks"
+        )
+        if problem is None:
+            out, problem = _pair(out, 2, "two 3x3 arrays, (A, B)")
+        if problem is None:
+            problem = _jacobian_problem(*out, p_i, p_j, z)
+        if problem is not None:
+            if problem != NOT_ATTEMPTED:
+                where = (
+                    f"on edge {k + 1} of {len(cases)} (p_i = {np.round(p_i, 3).tolist()}, "
+                    f"p_j = {np.round(p_j, 3).tolist()}, z = {np.round(z, 3).tolist()}): "
+                )
+                problem = where + problem
+            return verdict("2.1", problem, hint=hint)
+        A, B = (np.asarray(x, dtype=float) for x in out)
+        _, A_ref, B_ref = edge_jacobians(p_i, p_j, z)
+        A_fd, B_fd = _finite_differences(p_i, p_j, z)
+        worst_ref = max(worst_ref, np.abs(A - A_ref).max(), np.abs(B - B_ref).max())
+        worst_fd = max(worst_fd, np.abs(A - A_fd).max(), np.abs(B - B_fd).max())
+    return verdict(
+        "2.1",
+        None,
+        correct=(
+            f"on {len(cases)} random edges A and B match lagolib's edge_jacobians to "
+            f"{worst_ref:.1e} and central finite differences to {worst_fd:.1e}."
+        ),
+    )
+
+
+# ----------------------------------------------------------------------------- exercise 2.2
+def _rotated_information(rng):
+    """An anisotropic information matrix with principal axes rotated and x/y/theta coupled."""
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    return q @ np.diag(rng.uniform(0.5, 2.0, 3) * [50.0, 800.0, 3000.0]) @ q.T
+
+
+def _contribution_cases():
+    """Three seeded edges ``(p_i, p_j, z, Omega)`` with noisy measurements and rotated ``Omega``."""
+    rng = np.random.default_rng(2022)
+    cases = []
+    for _ in range(3):
+        p_i, p_j = rng.uniform(-1.0, 1.0, size=(2, 3)) * [4.0, 4.0, np.pi]
+        z = se2.between(p_i, p_j) + rng.normal(scale=[0.2, 0.2, 0.1])
+        cases.append((p_i, p_j, z, _rotated_information(rng)))
+    return cases
+
+
+def _reference_contribution(p_i, p_j, z, omega):
+    """``(H_ii, H_ij, H_jj, b_i, b_j)`` of one edge from the notes' loop on a one-edge graph."""
+    pair = PoseGraph(
+        poses=np.array([p_i, p_j]), edges=[[0, 1]], measurements=[z], information=[omega]
+    )
+    H, b = build_linear_system_loop(pair)
+    H = H.toarray()
+    return H[:3, :3], H[:3, 3:], H[3:, 3:], b[:3], b[3:]
+
+
+def _contribution_mistakes(e, A, B, W):
+    """For each output, ``[(wrong value, what it is), ...]`` — the usual slips."""
+    T = np.transpose
+
+    def block(X, Y, xn, yn, right):
+        return [
+            (X @ W @ Y, f"{xn} Omega {yn}: the transpose of {xn} is missing ({right})"),
+            (T(X) @ Y @ W, f"{xn}^T {yn} Omega: Omega is on the wrong side ({right})"),
+            (W @ T(X) @ Y, f"Omega {xn}^T {yn}: Omega is on the wrong side ({right})"),
+            (T(X) @ Y, f"{xn}^T {yn}: Omega is missing ({right})"),
+        ]
+
+    def vector(X, xn, right, other):
+        return [
+            (X @ W @ e, f"{xn} Omega e: the transpose of {xn} is missing ({right})"),
+            (T(X) @ e, f"{xn}^T e: Omega is missing ({right})"),
+            (
+                -(T(X) @ W @ e),
+                f"-{xn}^T Omega e: b has a plus sign ({right}); the minus sign "
+                "belongs to the normal equations H dx = -b",
+            ),
+            (T(other[0]) @ W @ e, f"{other[1]}^T Omega e: that uses the other block ({right})"),
+        ]
+
+    AtOA, AtOB, BtOA, BtOB = T(A) @ W @ A, T(A) @ W @ B, T(B) @ W @ A, T(B) @ W @ B
+    r_ii, r_ij, r_jj = "H_ii = A^T Omega A", "H_ij = A^T Omega B", "H_jj = B^T Omega B"
+    return {
+        "H_ii": block(A, A, "A", "A", r_ii) + [(BtOB, f"B^T Omega B: that is H_jj ({r_ii})")],
+        "H_ij": [
+            (
+                BtOA,
+                f"B^T Omega A: that is H_ji, the transpose of H_ij ({r_ij}: rows of x_i, "
+                "columns of x_j)",
+            ),
+            (AtOA, f"A^T Omega A: that is H_ii ({r_ij})"),
+            (
+                BtOB,
+                f"B^T Omega B: that is H_jj — the label the notes' slide gives this product is "
+                f"swapped ({r_ij})",
+            ),
+        ]
+        + block(A, B, "A", "B", r_ij),
+        "H_jj": block(B, B, "B", "B", r_jj)
+        + [
+            (
+                AtOB,
+                f"A^T Omega B: the notes' slide, step 4, labels this product H^jj, but it is "
+                f"the off-diagonal block H_ij ({r_jj})",
+            ),
+            (AtOA, f"A^T Omega A: that is H_ii ({r_jj})"),
+        ],
+        "b_i": vector(A, "A", "b_i = A^T Omega e", (B, "B")),
+        "b_j": vector(B, "B", "b_j = B^T Omega e", (A, "A")),
+    }
+
+
+@check("2.2")
+def check_edge_contribution(edge_contribution) -> bool:
+    """Exercise 2.2: what one edge adds to ``H`` and ``b``.
+
+    Calls ``edge_contribution(e, A, B, Omega)`` — the error ``e`` (shape (3,)), the Jacobian
+    blocks ``A``, ``B`` and the information matrix ``Omega`` (each shape (3, 3)) of three seeded
+    edges with anisotropic, rotated ``Omega`` — and compares the returned
+    ``(H_ii, H_ij, H_jj, b_i, b_j)`` (3x3, 3x3, 3x3, (3,), (3,)) with the blocks that
+    :func:`lagolib.gauss_newton.build_linear_system_loop` (lecture notes, "Building the Linear
+    System", steps 3 and 4) assembles for a one-edge graph.  Names the usual slips: a missing
+    transpose, ``Omega`` on the wrong side or missing, ``H_ji`` for ``H_ij``, the notes' swapped
+    ``H^jj`` label, a minus sign in ``b``.
+    """
+    hint = (
+        "J_ij = (... A ... B ...), so J^T Omega J has the blocks A^T Omega A, A^T Omega B, "
+        "B^T Omega A, B^T Omega B and J^T Omega e the blocks A^T Omega e, B^T Omega e "
+        "(Omega always in the middle, the transpose on the left)."
+    )
+    names = ("H_ii", "H_ij", "H_jj", "b_i", "b_j")
+    cases = _contribution_cases()
+    worst = 0.0
+    for k, (p_i, p_j, z, omega) in enumerate(cases):
+        e, A, B = edge_jacobians(p_i, p_j, z)
+        out, problem = call_student(
+            edge_contribution, e.copy(), A.copy(), B.copy(), omega.copy(), name="edge_contribution"
+        )
+        if problem is None:
+            out, problem = _pair(out, 5, "five arrays, (H_ii, H_ij, H_jj, b_i, b_j)")
+        if problem is None:
+            refs = _reference_contribution(p_i, p_j, z, omega)
+            mistakes = _contribution_mistakes(e, A, B, omega)
+            for name, got, ref in zip(names, out, refs):
+                problem = compare_array(got, ref, name=name)
+                if problem is None:
+                    worst = max(
+                        worst, np.abs(np.asarray(got, float) - ref).max() / np.abs(ref).max()
+                    )
+                    continue
+                if problem == NOT_ATTEMPTED:
+                    break
+                for value, what in mistakes[name]:
+                    if _close(got, value):
+                        problem = f"your {name} is {what}."
+                        break
+                break
+        if problem is not None:
+            if problem != NOT_ATTEMPTED:
+                problem = f"on edge {k + 1} of {len(cases)}: {problem}"
+            return verdict("2.2", problem, hint=hint)
+    return verdict(
+        "2.2",
+        None,
+        correct=(
+            f"on {len(cases)} edges with rotated, anisotropic Omega all five blocks match the "
+            f"notes' loop (build_linear_system_loop) to {worst:.1e} relative."
+        ),
+    )
+
+
+# ----------------------------------------------------------------------------- exercise 2.3
+def structure_graph() -> PoseGraph:
+    """The small graph of exercise 2.3: 7 poses, 10 edges, two connected components.
+
+    Poses 0–3 are joined by every pair (a complete graph on four poses) and 0–1 is measured twice;
+    poses 4–6 form a chain whose edge 5–6 is measured twice.  Nothing joins the two groups.
+    Poses and measurements are seeded; every edge has information ``diag(100, 100, 400)``.
+    """
+    rng = np.random.default_rng(23)
+    poses = np.column_stack(
+        [rng.uniform(-3, 3, 7), rng.uniform(-3, 3, 7), rng.uniform(-np.pi, np.pi, 7)]
+    )
+    edges = np.array(
+        [[0, 1], [1, 2], [2, 3], [3, 0], [0, 2], [1, 3], [0, 1], [4, 5], [5, 6], [5, 6]]
+    )
+    z = se2.between(poses[edges[:, 0]], poses[edges[:, 1]])
+    z = z + rng.normal(scale=[0.05, 0.05, 0.02], size=z.shape)
+    info = np.broadcast_to(np.diag([100.0, 100.0, 400.0]), (len(edges), 3, 3))
+    return PoseGraph(poses, edges, z, info)
+
+
+def _structure(graph):
+    """Non-zero 3x3 blocks of ``H`` (nothing fixed) and the dimension of its null space."""
+    H = LinearSystem(graph).assemble(graph.poses)[0].toarray()
+    n = graph.n
+    blocks = int(np.count_nonzero(np.any(H.reshape(n, 3, n, 3) != 0, axis=(1, 3))))
+    eig = np.linalg.eigvalsh(H)  # a 21 x 21 illustration, not a solve path
+    null = int(np.count_nonzero(eig < 1e-9 * eig.max()))
+    return blocks, null
+
+
+@check("2.3")
+def check_structure(n_blocks, null_dim) -> bool:
+    """Exercise 2.3: predict the structure of ``H`` for :func:`structure_graph` (nothing fixed).
+
+    Compares ``n_blocks`` — the number of 3x3 blocks of ``H`` that are not zero — and ``null_dim``
+    — the dimension of the null space of ``H`` (no prior, no fixed pose) — with what lagolib's
+    ``H`` (:class:`lagolib.gauss_newton.LinearSystem`) has, and prints both actual values.
+    """
+    g = structure_graph()
+    blocks, null = _structure(g)
+    pairs = len({tuple(sorted(map(int, e))) for e in g.edges})
+    count, _ = g.components()
+    if is_placeholder(n_blocks) or is_placeholder(null_dim):
+        return verdict("2.3", NOT_ATTEMPTED)
+    actual = (
+        f"lagolib's H has {blocks} non-zero blocks ({g.n} diagonal + 2 x {pairs} pairs of joined "
+        f"poses) and a null space of dimension {null} ({count} components x 3)."
+    )
+    problems, hints = [], []
+    p = compare_int(n_blocks, blocks, name="n_blocks")
+    if p is not None:
+        problems.append(p)
+        why = {
+            g.n
+            + 2 * g.m: "you counted edges: two measurements between the same two poses (0-1 and "
+            "5-6 here) add into the same blocks",
+            g.n + pairs: "each pair of joined poses fills two off-diagonal blocks, H_ij and "
+            "H_ji = H_ij^T",
+            2 * pairs: "every pose also has its diagonal block H_ii",
+            g.n
+            + g.m: "each pair of joined poses fills two off-diagonal blocks, and parallel edges "
+            "share them",
+            g.n * g.n: "H is sparse: block (i, j) is non-zero only when an edge joins i and j",
+        }.get(int(n_blocks) if isinstance(n_blocks, (int, np.integer)) else None)
+        hints.append(
+            why or "count the diagonal blocks, then two blocks per pair of poses that an edge joins"
+        )
+    p = compare_int(null_dim, null, name="null_dim")
+    if p is not None:
+        problems.append(p)
+        why = {
+            3: "3 is right for one connected component; this graph has two, and each can be moved "
+            "rigidly on its own",
+            0: "with nothing fixed, a rigid motion of all poses changes no error, so H is singular",
+        }.get(int(null_dim) if isinstance(null_dim, (int, np.integer)) else None)
+        hints.append(
+            why
+            or "a planar rigid motion has 3 degrees of freedom (x, y, rotation); how "
+            "many independent rigid motions leave every error unchanged?"
+        )
+    if problems:
+        return verdict("2.3", " ".join(problems) + " " + actual, hint="; ".join(hints) + ".")
+    return verdict("2.3", None, correct=actual)
+
+
+# ----------------------------------------------------------------------------- exercise 2.4
+#: The initial dampings of exercise 2.4.
+DAMPING_LAMBDAS = (1e-5, 1e-3, 1e-1, 1e1, 1e3, 1e5)
+
+
+def damping_sweep(graph=None, lambdas=DAMPING_LAMBDAS):
+    """Levenberg–Marquardt from the stored poses for each ``lambda_initial``.
+
+    Parameters
+    ----------
+    graph : PoseGraph, optional
+        Default: the shipped example ``square_loop``.
+    lambdas : sequence of float
+
+    Returns
+    -------
+    list of (float, int, float)
+        ``(lambda_initial, iterations, final chi2)`` per damping.
+    """
+    if graph is None:
+        graph = datasets.example("square_loop").graph
+    out = []
+    for lam in lambdas:
+        r = optimize(graph, method="lm", lambda_initial=lam)
+        out.append((float(lam), int(r.iterations), float(r.chi2)))
+    return out
+
+
+@check("2.4")
+def check_damping(trend, same_optimum) -> bool:
+    """Exercise 2.4: Levenberg–Marquardt's initial damping, explored on ``square_loop``.
+
+    ``trend`` — ``"more"``, ``"fewer"`` or ``"same"``: how the number of iterations changes as
+    ``lambda_initial`` grows from 1e-5 to 1e5; ``same_optimum`` — True or False: whether every
+    damping reaches the same χ² (to 1e-9 relative).  Both are compared with
+    :func:`damping_sweep` on the shipped ``square_loop``.
+    """
+    if is_placeholder(trend) or is_placeholder(same_optimum):
+        return verdict("2.4", NOT_ATTEMPTED)
+    sweep = damping_sweep()
+    its = [s[1] for s in sweep]
+    chis = np.array([s[2] for s in sweep])
+    expected_trend = "more" if its[-1] > its[0] else "fewer" if its[-1] < its[0] else "same"
+    spread = float((chis.max() - chis.min()) / chis.min())
+    expected_same = spread < 1e-9
+    table = ", ".join(f"{lam:.0e}: {it}" for lam, it, _ in sweep)
+    actual = f"iterations per lambda_initial {table}; final chi2 spread {spread:.1e} relative."
+    problems, hints = [], []
+    p = compare_choice(trend, expected_trend, ["more", "fewer", "same"], name="trend")
+    if p is not None:
+        problems.append(p)
+        hints.append(
+            "compare the iterations printed for the smallest and the largest lambda_initial; a "
+            "large lambda I swamps H, so the first steps are short gradient steps"
+        )
+    if isinstance(same_optimum, (bool, np.bool_)):
+        same_optimum = bool(same_optimum)
+    p = compare_choice(same_optimum, expected_same, [True, False], name="same_optimum")
+    if p is not None:
+        problems.append(p)
+        hints.append(
+            "compare the final chi2 column: the damping changes the path to the minimum, not "
+            "the minimum (at convergence lambda has shrunk and the step is Gauss-Newton's)"
+        )
+    if problems:
+        return verdict("2.4", " ".join(problems) + " " + actual, hint="; ".join(hints) + ".")
+    return verdict("2.4", None, correct=actual)
