@@ -6,7 +6,8 @@ chapter (``execute_notebooks: force``).  A local HTTP server serves the site, an
 every page of the table of contents and checks what a reader sees:
 
 * the page loads without console errors, failed requests or script exceptions;
-* MathJax typeset every math element, and no raw ``$$``/``$…$`` is left in the text;
+* MathJax typeset every math element without an error, and no raw ``$$``/``$…$`` is left in the
+  text;
 * every image is present and decoded (``naturalWidth > 0``), at least as many as the chapter
   promises (``metadata["lagolib"]["figures"]``);
 * every solution (code cell tagged ``solution``, and its "Solution and discussion") is folded, and
@@ -40,6 +41,12 @@ BUILD_TIMEOUT = 1500  # seconds; a hang guard only
 THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 pytestmark = pytest.mark.site
+# what MathJax makes of a formula it cannot typeset: MathJax 2 shows the TeX source in a box
+# (.mjx-noError) over an <merror> in its MathML; MathJax 3 an <mjx-merror> element
+MATH_ERRORS = ", ".join(
+    f"main {s}"
+    for s in ('[data-mathml*="<merror"]', ".mjx-noError", ".mjx-merror", "mjx-merror", ".noError")
+)
 
 
 def _unavailable(why):
@@ -198,6 +205,11 @@ def test_page_reads_in_a_browser(page, browser, server):
         n_math = p.wait_for_math()
         if page in CHAPTERS:
             assert n_math > 0, f"{page}: no typeset math on the page"
+        errors = p.page.locator(MATH_ERRORS)
+        assert errors.count() == 0, (
+            f"{page}: MathJax could not typeset {errors.count()} formulas, e.g. "
+            f"{errors.first.inner_text()[:200]!r}"
+        )
         text = _text_outside_code(p.page)
         assert "$$" not in text, f"{page}: raw $$ left in the text"
         raw = re.findall(r"\$[^$\s][^$\n]{0,40}\$", text)

@@ -1,10 +1,14 @@
-"""Sphinx extension for the lagolib book's site: local MathJax, and one copy of each script.
+r"""Sphinx extension for the lagolib book's site: local MathJax, tagged displays, scripts once.
 
 * **MathJax without a network.**  Sphinx loads MathJax from a CDN by default, so the built site
   shows raw TeX wherever the reader (or the browser test) is offline.  When a MathJax 2 folder is
   at hand — ``$LAGOLIB_MATHJAX``, or Debian's ``libjs-mathjax`` at ``/usr/share/javascript/mathjax``
   (with ``fonts-mathjax``) — its script, CommonHTML output and web fonts are copied into
   ``_static/mathjax`` and the pages load them from there.  Without one, the CDN default stays.
+* **Tagged equations.**  A chapter numbers an equation as its source does, with ``\tag{13}`` in
+  ``$$…$$`` (which Jupyter renders too).  Sphinx wraps every display containing ``\\`` — even
+  inside a matrix — in ``\begin{split}``, where ``\tag`` is an error.  Displays with a tag are
+  passed to MathJax as written, between ``\[`` and ``\]``.
 * **Scripts once.**  Jupyter Book 1 registers sphinx-thebe's inline configuration script twice;
   the second copy re-declares a ``const`` and raises in the browser console.  Identical
   ``<script>`` lines are kept once in every written page.
@@ -13,6 +17,8 @@
 import os
 import shutil
 from pathlib import Path
+
+from docutils import nodes
 
 DEBIAN_MATHJAX = Path("/usr/share/javascript/mathjax")
 CONFIG = "TeX-AMS_CHTML-full"
@@ -75,6 +81,14 @@ def _copy_mathjax(app):
     shutil.copytree(woff, target / "fonts" / "HTML-CSS" / "TeX" / "woff", dirs_exist_ok=True)
 
 
+def _tagged_displays_unwrapped(app, doctree):
+    for node in doctree.findall(nodes.math_block):
+        latex = node.astext()
+        if "\\tag{" in latex and not node.get("nowrap"):
+            node["nowrap"] = True
+            node.children = [nodes.Text(f"\\[{latex}\\]")]
+
+
 def _scripts_once(app, exc):
     if exc is not None or app.builder.format != "html":
         return
@@ -95,5 +109,6 @@ def _scripts_once(app, exc):
 def setup(app):
     app.connect("config-inited", _use_local_mathjax)
     app.connect("builder-inited", _copy_mathjax)
+    app.connect("doctree-read", _tagged_displays_unwrapped)
     app.connect("build-finished", _scripts_once)
     return {"parallel_read_safe": True, "parallel_write_safe": True}
