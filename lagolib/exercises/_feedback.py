@@ -31,6 +31,8 @@ __all__ = [
     "results",
     "reset",
     "is_placeholder",
+    "matches",
+    "show",
     "verdict",
     "not_attempted",
     "call_student",
@@ -191,7 +193,7 @@ def compare_array(
         g = np.asarray(got, dtype=float)
     except (TypeError, ValueError):
         return (
-            f"{name} should be numbers (an array of shape {np.shape(expected)}), got {_short(got)}."
+            f"{name} should be numbers (an array of shape {np.shape(expected)}), got {show(got)}."
         )
     e = np.asarray(expected, dtype=float)
     if g.shape != e.shape:
@@ -239,13 +241,13 @@ def compare_number(
     if is_placeholder(got):
         return NOT_ATTEMPTED
     if isinstance(got, (str, bytes)):
-        return f"{name} should be a number, got the string {_short(got)}."
+        return f"{name} should be a number, got the string {show(got)}."
     if isinstance(got, bool) or not np.isscalar(got) and np.ndim(got) != 0:
-        return f"{name} should be one number, got {_short(got)}."
+        return f"{name} should be one number, got {show(got)}."
     try:
         g = float(got)
     except (TypeError, ValueError):
-        return f"{name} should be a number, got {_short(got)}."
+        return f"{name} should be a number, got {show(got)}."
     if not np.isfinite(g):
         return f"{name} is {g}."
     if abs(g - expected) <= atol + rtol * abs(expected):
@@ -263,7 +265,7 @@ def compare_int(got, expected: int, *, name: str = "your answer") -> str | None:
         if isinstance(got, (float, np.floating)) and float(got).is_integer():
             got = int(got)
         else:
-            return f"{name} should be a whole number, got {_short(got)}."
+            return f"{name} should be a whole number, got {show(got)}."
     if int(got) == int(expected):
         return None
     more = "more" if got > expected else "fewer"
@@ -289,16 +291,32 @@ def compare_choice(got, expected, choices, *, name: str = "your answer") -> str 
             return False
 
     if not any(same(got, c) for c in choices):
-        return f"{name} should be one of {list(choices)}, got {_short(got)}."
+        return f"{name} should be one of {list(choices)}, got {show(got)}."
     if same(got, expected):
         return None
-    return f"{name} is {_short(got)}, {WRONG_CHOICE}"
+    return f"{name} is {show(got)}, {WRONG_CHOICE}"
 
 
-def _short(x) -> str:
-    """``repr(x)`` cut to 80 characters, whatever ``x`` is."""
+def show(value, width: int = 80) -> str:
+    """``repr(value)`` cut to ``width`` characters, whatever ``value`` is (a repr may raise)."""
     try:
-        text = repr(x)
+        text = repr(value)
     except Exception:  # a student's object whose repr raises
-        text = f"<{type(x).__name__}>"
-    return text if len(text) <= 80 else text[:77] + "..."
+        text = f"<{type(value).__name__}>"
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def matches(got, expected, tol: float = 1e-9) -> bool:
+    """Whether ``got`` is the array ``expected`` to ``tol`` (relative to its largest entry).
+
+    For recognizing a particular wrong answer (a transpose, a missing term); False for anything
+    that is not an array of the same shape.
+    """
+    try:
+        g = np.asarray(got, dtype=float)
+        e = np.asarray(expected, dtype=float)
+        return g.shape == e.shape and bool(
+            np.all(np.abs(g - e) <= tol * max(1.0, float(np.abs(e).max(initial=0.0))))
+        )
+    except (TypeError, ValueError):
+        return False

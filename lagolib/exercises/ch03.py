@@ -25,6 +25,7 @@ from lagolib.exercises._feedback import (
     compare_int,
     compare_number,
     is_placeholder,
+    matches,
     verdict,
 )
 from lagolib.graph import PoseGraph
@@ -84,17 +85,6 @@ def _block(a, r, c=None):
     return a[3 * r : 3 * r + 3, 3 * c : 3 * c + 3]
 
 
-def _same(got, expected, tol=1e-9):
-    try:
-        g = np.asarray(got, dtype=float)
-    except (TypeError, ValueError):
-        return False
-    e = np.asarray(expected, dtype=float)
-    return g.shape == e.shape and bool(
-        np.all(np.abs(g - e) <= tol * max(1.0, float(np.abs(e).max())))
-    )
-
-
 # ---------------------------------------------------------------------------------------------
 # 3.1
 
@@ -141,7 +131,7 @@ def check_marginal_covariance(marginal_covariance) -> bool:
                 hint="call .toarray() on a sparse result, or invert the dense H.toarray() with "
                 "np.linalg.inv (the inverse of a sparse H is dense anyway).",
             )
-        if _same(got, _block(Hd, k)):
+        if matches(got, _block(Hd, k)):
             return verdict(
                 ex,
                 f"for pose {v} you returned H's own diagonal block: that is the information of "
@@ -149,7 +139,7 @@ def check_marginal_covariance(marginal_covariance) -> bool:
                 hint="invert H first (np.linalg.inv(H.toarray()) on this small graph), then take "
                 "the 3x3 block of the inverse.",
             )
-        if _same(got, np.linalg.inv(_block(Hd, k))):
+        if matches(got, np.linalg.inv(_block(Hd, k))):
             a = np.sqrt(np.trace(np.asarray(got, float)[:2, :2]))
             b = np.sqrt(np.trace(ref[:2, :2]))
             return verdict(
@@ -160,7 +150,7 @@ def check_marginal_covariance(marginal_covariance) -> bool:
                 hint="(H^-1)_vv is not (H_vv)^-1: the off-diagonal blocks of H (the edges to the "
                 "neighbours) matter. Invert the whole H, then take the block.",
             )
-        if v < K and k != v and _same(got, _block(Hinv, v)):
+        if v < K and k != v and matches(got, _block(Hinv, v)):
             return verdict(
                 ex,
                 f"for pose {v} you returned block {v} of H^-1, which belongs to pose "
@@ -382,7 +372,7 @@ def check_relative_covariance(relative_covariance) -> bool:
                 )
             )
         for wrong, message in mistakes:
-            if _same(got, wrong):
+            if matches(got, wrong):
                 return verdict(
                     ex,
                     f"for the pair (i, j) = ({i}, {j}) {message}",

@@ -29,6 +29,7 @@ from lagolib.exercises._feedback import (
     compare_choice,
     compare_int,
     is_placeholder,
+    show,
     verdict,
 )
 
@@ -60,15 +61,6 @@ def _whole(value) -> bool:
     if isinstance(value, (int, np.integer)):
         return True
     return isinstance(value, (float, np.floating)) and float(value).is_integer()
-
-
-def _show(value, width=80) -> str:
-    """``repr(value)`` cut to ``width`` characters, whatever ``value`` is (a repr may raise)."""
-    try:
-        text = repr(value)
-    except Exception:  # a student's object whose repr raises
-        text = f"<{type(value).__name__}>"
-    return text if len(text) <= width else text[: width - 3] + "..."
 
 
 def _edge_list(edges):
@@ -359,7 +351,7 @@ def _circuit_array(got, expected):
     try:
         g = np.asarray(got, dtype=float)
     except (TypeError, ValueError):
-        return None, f"circuit_vector should return an array of numbers, got {_show(got)}."
+        return None, f"circuit_vector should return an array of numbers, got {show(got)}."
     if g.shape != expected.shape:
         return None, (
             f"your vector has shape {g.shape}; it should have one entry per edge of the graph, "

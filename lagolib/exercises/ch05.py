@@ -32,6 +32,8 @@ from lagolib.exercises._feedback import (
     compare_int,
     compare_number,
     is_placeholder,
+    matches,
+    show,
     verdict,
 )
 from lagolib.graph import PoseGraph
@@ -57,26 +59,6 @@ CLOSURES = ((2, 22), (27, 7), (7, 9), (18, 23), (4, 46), (12, 33), (31, 27), (40
 # exercise 5.4: the heading noise levels of the slider, rad
 SIGMA_GRID = tuple(round(0.02 * k, 2) for k in range(1, 31))
 _EXPLORE_TREES = ("odometric", "min_uncertainty")
-
-
-def _show(value, width=80) -> str:
-    """``repr(value)`` cut to ``width`` characters, whatever ``value`` is (a repr may raise)."""
-    try:
-        text = repr(value)
-    except Exception:  # a student's object whose repr raises
-        text = f"<{type(value).__name__}>"
-    return text if len(text) <= width else text[: width - 3] + "..."
-
-
-def _same(got, expected, tol=1e-9):
-    try:
-        g = np.asarray(got, dtype=float)
-    except (TypeError, ValueError):
-        return False
-    e = np.asarray(expected, dtype=float)
-    return g.shape == e.shape and bool(
-        np.all(np.abs(g - e) <= tol * max(1.0, float(np.abs(e).max())))
-    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -164,7 +146,7 @@ def check_phase1(phase1) -> bool:
                 f"orientation is fixed to 0 and is not an unknown ({ref.size} expected).",
                 hint="A has one row per non-anchor vertex: solve for exactly A.shape[0] values.",
             )
-        if _same(got, _weighted_solve(A, delta_bar, np.ones_like(omega)), 1e-7):
+        if matches(got, _weighted_solve(A, delta_bar, np.ones_like(omega)), 1e-7):
             return verdict(
                 ex,
                 f"{what} you solved A Aᵀ θ = A δ̄: ordinary least squares, every edge weighted "
@@ -172,7 +154,7 @@ def check_phase1(phase1) -> bool:
                 hint="eq. (13) weights each edge by its information P_δ⁻¹ = omega: "
                 "A P_δ⁻¹ Aᵀ θ = A P_δ⁻¹ δ̄, with P_δ⁻¹ = sp.diags(omega).",
             )
-        if _same(got, _weighted_solve(A, delta_bar, 1.0 / omega), 1e-7):
+        if matches(got, _weighted_solve(A, delta_bar, 1.0 / omega), 1e-7):
             return verdict(
                 ex,
                 f"{what} you weighted the edges by 1/omega, their variances: the noisiest edges "
@@ -320,7 +302,7 @@ def check_regularize_chord(regularize_chord) -> bool:
             if pair is None:
                 return verdict(
                     ex,
-                    f"regularize_chord returned {_show(value, 60)}; it should return two values, "
+                    f"regularize_chord returned {show(value, 60)}; it should return two values, "
                     "(cycle_sum, k).",
                     hint="end with `return cycle_sum, k`.",
                 )
@@ -345,14 +327,14 @@ def check_regularize_chord(regularize_chord) -> bool:
             f"for the chord {chord} ({a} -> {b}) with the {tree!r} tree, whose circuit has "
             f"{edges.size} edges and sums to {s_ref:+.4f} rad ({s_ref / TWO_PI:+.2f} turns), "
         )
-        if _same(k, s_ref) and _same(s, k_ref):
+        if matches(k, s_ref) and matches(s, k_ref):
             return verdict(
                 ex,
                 head + f"your function returned ({s!r}, {k!r}): k first, then the sum. The "
                 "exercise asks for the pair in the order (cycle_sum, k).",
                 hint="end with `return cycle_sum, k`.",
             )
-        if not isinstance(s, (bool, np.bool_)) and _same(s, delta[chord]):
+        if not isinstance(s, (bool, np.bool_)) and matches(s, delta[chord]):
             return verdict(
                 ex,
                 head + "your cycle_sum is the chord's own angle delta[chord]: the tree path is "
@@ -360,28 +342,28 @@ def check_regularize_chord(regularize_chord) -> bool:
                 hint="the circuit is the chord plus the tree path back; sum over all of "
                 "`edges`: np.sum(signs * delta[edges]).",
             )
-        if abs(delta[chord]) > 1e-6 and _same(s, s_ref - delta[chord]):
+        if abs(delta[chord]) > 1e-6 and matches(s, s_ref - delta[chord]):
             return verdict(
                 ex,
                 head + "your cycle_sum is the tree path alone: the chord itself is missing.",
                 hint="the fundamental circuit is the chord plus the tree path (Def. 1); `edges` "
                 "starts with the chord (sign +1): np.sum(signs * delta[edges]).",
             )
-        if _same(s, np.sum(delta[edges])):
+        if matches(s, np.sum(delta[edges])):
             return verdict(
                 ex,
                 head + "your cycle_sum adds the angles without their signs.",
                 hint="an edge walked against its direction (sign −1) contributes −delta: "
                 "np.sum(signs * delta[edges]).",
             )
-        if _same(s, -s_ref):
+        if matches(s, -s_ref):
             return verdict(
                 ex,
                 head + "your cycle_sum has the opposite sign: the circuit walks the chord "
                 "forwards (sign +1, first in `edges`).",
                 hint="np.sum(signs * delta[edges]), with the signs as given.",
             )
-        if _same(s, se2.wrap_angle(s_ref)):
+        if matches(s, se2.wrap_angle(s_ref)):
             return verdict(
                 ex,
                 head + "your cycle_sum is wrapped into (−π, π]: the whole turns that k must "
@@ -398,7 +380,7 @@ def check_regularize_chord(regularize_chord) -> bool:
         bad = next(k for k in got_k if not isinstance(k, (int, float, np.integer, np.floating)))
         return verdict(
             ex,
-            f"k should be a whole number, got {_show(bad, 60)}.",
+            f"k should be a whole number, got {show(bad, 60)}.",
             hint="k = -int(np.round(...)).",
         )
     ref_k = np.array(ref_k)
@@ -417,7 +399,7 @@ def check_regularize_chord(regularize_chord) -> bool:
     tree, chord, a, b = where[w][:4]
     head = (
         f"for the chord {chord} ({a} -> {b}) with the {tree!r} tree the circuit sums to "
-        f"{turns[w]:+.3f} turns; your k is {_show(got_k[w], 40)}, eq. (23) gives {ref_k[w]} "
+        f"{turns[w]:+.3f} turns; your k is {show(got_k[w], 40)}, eq. (23) gives {ref_k[w]} "
         f"({wrong.size} of {ks.size} chords differ)"
     )
     if not np.all(np.isfinite(ks)) or not np.all(ks == np.round(ks)):
