@@ -166,7 +166,10 @@ class Page:
             """() => {
                 const math = [...document.querySelectorAll('main .math')];
                 const done = el => el.querySelector('.MathJax_CHTML, .MathJax, mjx-container');
-                return math.every(done);
+                // MathJax 2 lays tags and spacing out again once its web fonts are in
+                const hub = window.MathJax && window.MathJax.Hub;
+                const idle = !hub || (hub.queue.pending === 0 && !hub.queue.running);
+                return math.every(done) && idle && document.fonts.status === 'loaded';
             }""",
             timeout=60_000,
         )
