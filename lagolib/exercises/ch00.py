@@ -1,0 +1,119 @@
+"""Checks for the preface's exercise: counting with the three sources' notations.
+
+===========  =========  ==========================================================================
+exercise     kind       check
+===========  =========  ==========================================================================
+0.1          predict    :func:`check_notation` — Carlone's ``n``, the shape of his ``A``, and the
+                        length of the lecture notes' state vector, for :func:`notation_graph`
+===========  =========  ==========================================================================
+
+The check prints one line starting ``Exercise 0.1`` (correct / not yet / not attempted yet, see
+:mod:`lagolib.exercises`) and returns True or False; it never raises on a wrong answer.
+"""
+
+from __future__ import annotations
+
+from lagolib import PoseGraph, simulate, topology
+from lagolib.exercises._feedback import (
+    NOT_ATTEMPTED,
+    check,
+    compare_int,
+    is_placeholder,
+    show,
+    verdict,
+)
+
+__all__ = ["notation_graph", "check_notation"]
+
+
+def notation_graph() -> PoseGraph:
+    """The exercise's graph: three laps of a square, 4 poses per lap (12 poses, 19 edges)."""
+    return simulate.loop_world(laps=3, poses_per_lap=4).graph
+
+
+def _shape(value):
+    """``value`` as a tuple of ints, or None when it is not a shape."""
+    try:
+        shape = tuple(value)
+        if all(int(k) == k for k in shape):
+            return tuple(int(k) for k in shape)
+    except (TypeError, ValueError):
+        pass
+    return None
+
+
+@check("0.1")
+def check_notation(n_unknown, A_shape, state_length):
+    """Exercise 0.1: counts for :func:`notation_graph` in the sources' notations.
+
+    Compares ``n_unknown`` with Carlone et al.'s ``n`` (the nodes are ``n + 1``; the anchor's pose
+    is known), ``A_shape`` with the shape of the reduced incidence matrix ``A``
+    (:func:`lagolib.topology.reduced_incidence_matrix`), and ``state_length`` with the length of
+    the lecture notes' state vector ``x`` (three numbers for every pose; the notes fix the gauge
+    with a prior on ``x_0``, not by leaving a pose out).
+
+    Parameters
+    ----------
+    n_unknown : int
+    A_shape : tuple of two ints
+    state_length : int
+
+    Returns
+    -------
+    bool
+    """
+    ex = "0.1"
+    if any(is_placeholder(a) for a in (n_unknown, A_shape, state_length)):
+        return verdict(ex, NOT_ATTEMPTED)
+    graph = notation_graph()
+    nodes, m = graph.n, graph.m
+    n = nodes - 1
+    A = topology.reduced_incidence_matrix(graph).shape
+    problems = []
+    wrong = compare_int(n_unknown, n, name="n_unknown")
+    if wrong is not None:
+        if n_unknown == nodes:
+            wrong = (
+                f"n_unknown = {nodes} counts the anchor: Carlone's graph has n + 1 = {nodes} "
+                "nodes, and n counts the poses to estimate."
+            )
+        problems.append(wrong)
+    shape = _shape(A_shape)
+    if shape is None:
+        problems.append(
+            f"A_shape should be a pair of whole numbers (rows, columns), got {show(A_shape)}."
+        )
+    elif shape != A:
+        if shape == (nodes, m):
+            problems.append(
+                f"A_shape = {shape} is the shape of 𝒜, the full incidence matrix: A drops the "
+                "anchor's row."
+            )
+        elif shape == A[::-1]:
+            problems.append(
+                f"A_shape = {shape} is transposed: A has a row per unknown pose and "
+                "a column per edge."
+            )
+        else:
+            problems.append(f"A_shape = {shape}; count A's rows (poses) and columns (edges).")
+    wrong = compare_int(state_length, 3 * nodes, name="state_length")
+    if wrong is not None:
+        if state_length == 3 * n:
+            wrong = (
+                f"state_length = {3 * n} leaves x_0 out: the notes keep every pose in x and fix "
+                "the gauge with a prior on x_0."
+            )
+        elif state_length == 4 * nodes:
+            wrong = f"state_length = {4 * nodes} is Lodi Rizzini's (x, y, c, s): the notes use (x, y, θ)."
+        problems.append(wrong)
+    if problems:
+        return verdict(
+            ex,
+            " ".join(problems),
+            hint="the preface's notation table has a row on n vs n + 1 nodes and on the state.",
+        )
+    return verdict(
+        ex,
+        None,
+        correct=f"n = {n}, A is {A[0]}×{A[1]}, x has {3 * nodes} entries ({nodes} poses, {m} edges).",
+    )
