@@ -2,8 +2,9 @@
 
 Layers (each imports only from the ones before it)::
 
-    errors -> se2 -> checks -> graph -> io, simulate -> datasets -> topology -> linalg -> estimation
-    -> gauss_newton, lago -> closed_form -> plotting -> uncertainty;   symbolic (sympy only)
+    errors -> se2 -> checks -> graph -> io, simulate, metrics -> datasets -> topology -> linalg
+    -> estimation -> gauss_newton, lago, sgd -> closed_form -> plotting -> uncertainty -> book
+    -> cli;   symbolic (sympy only)
 
 Public API
 ----------
@@ -34,6 +35,15 @@ lago_solve, LagoResult, lago
 closed_form
     Lodi Rizzini's closed form: poses as (x, y, cos, sin), position and angular equations, the
     orthogonality condition solved by Newton's method.
+metrics
+    Carlone's Table II metrics ``constraint_satisfaction`` (η_c, η_a); SE-Sync's objective and
+    weights (``sesync_objective``, ``sesync_weights``); ``align``, ``absolute_trajectory_error``
+    and ``relative_pose_error`` against ground truth.
+sgd
+    A TORO-style baseline: stochastic gradient descent on a tree parameterization
+    (``lagolib.sgd.sgd``).
+cli
+    The ``lagolib`` command: ``info``, ``solve``, ``plot``, ``datasets``, ``book``.
 uncertainty
     Marginal and relative covariances from the sparse ``H``, loop-closure gating.
 symbolic
@@ -51,8 +61,10 @@ from . import (
     gauss_newton,
     lago,
     linalg,
+    metrics,
     plotting,
     se2,
+    sgd,
     simulate,
     topology,
     uncertainty,
@@ -108,6 +120,8 @@ __all__ = [
     "topology",
     "estimation",
     "lago",
+    "metrics",
+    "sgd",
     "LagoResult",
     "lago_solve",
     "closed_form",

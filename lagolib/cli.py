@@ -1,28 +1,844 @@
-"""The ``lagolib`` command.
+"""The ``lagolib`` command: inspect, solve and plot planar pose-graph files from the shell.
 
-``lagolib book student-copies OUTDIR [--book BOOKDIR]`` — see :mod:`lagolib.book`.
+::
+
+    lagolib info FILE                  counts, connectivity, odometric chain, regularization per
+                                       spanning tree, information isotropy, chi2 at the file's poses
+    lagolib solve FILE --method M -o OUT.g2o [--plot OUT.png] [--progress]
+                                       M in lago, gn, lm, lago+gn, sgd; writes the solved graph
+    lagolib plot FILE [--poses P.txt] [--ellipses] -o OUT.png
+                                       odometric edges solid, loop closures dotted (Carlone Fig. 1)
+    lagolib datasets                   the registered benchmarks and where each one is
+    lagolib book student-copies OUTDIR the book's tools (:mod:`lagolib.book`)
+
+``FILE`` is a g2o or TORO file, or the name of a registered benchmark (``lagolib datasets``) or of
+a shipped example (``square_loop``, ``manhattan200``, ``grid100``).
+
+Errors print one line, ``lagolib: error: ...``, on stderr: the exit status is 2 for a usage error
+(an unknown option, method or value) and 1 for anything else (a missing file, a parse error — the
+message names ``file:line`` —, a graph lagolib cannot solve).  ``--debug`` (anywhere on the
+command line) adds the traceback.  An interrupt (Ctrl-C) exits with 130, without a traceback.
+Warnings (e.g. :class:`lagolib.lago.RegularizationWarning`) print one line each,
+``lagolib: warning: ...``.
 """
 
 from __future__ import annotations
 
+import argparse
+import contextlib
+import io
+import json
+import os
+import re
 import sys
+import time
+import traceback
+import warnings
+from pathlib import Path
 
-from . import book
+import numpy as np
 
+from . import book, datasets, se2, topology
+from .errors import GraphError, LagolibError, OptionError, OptionTypeError
+from .gauss_newton import optimize
+from .graph import ERRORS, chi2, vertex_rows
+from .io import detect_format, read, read_poses, write
+from .lago import lago, regularize
+
+__all__ = ["main", "COMMANDS", "METHODS"]
+
+#: Commands handed over whole to another module's ``main(argv)``.
 COMMANDS = {"book": book.main}
-USAGE = "usage: lagolib {book} ...\n  book    the book's tools (lagolib book --help)"
+#: ``lagolib solve --method`` choices.
+METHODS = ("lago", "gn", "lm", "lago+gn", "sgd")
+#: Chords whose cycle sum is closer than this many turns to ±½ are reported as unreliable.
+MARGIN = 0.1
+_GRAPH_SUFFIXES = {".g2o": "g2o", ".graph": "TORO"}
+_VERTEX_LINE = re.compile(rb"(?m)^[ \t]*(?:VERTEX_SE2|VERTEX2)[ \t]")
+_DPI = 150
+_INCHES = 6.0
+
+
+class _UsageError(Exception):
+    """A command line argparse (or a check of ours) rejects: exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises :class:`_UsageError` instead of printing usage and exiting."""
+
+    def error(self, message):
+        command = self.prog.removeprefix("lagolib").strip()
+        raise _UsageError(f"{command}: {message}" if command else message)
+
+
+class _Formatter(argparse.RawDescriptionHelpFormatter):
+    """Keep the descriptions' line breaks (for the examples); show the defaults that say something."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        default = action.default
+        if "%(default)" in text or default in (None, False, argparse.SUPPRESS):
+            return text
+        if action.option_strings or action.nargs in ("?", "*"):
+            text += " (default: %(default)s)"
+        return text
+
+
+# ----------------------------------------------------------------------------- argument types
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer; got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer; got {value}")
+    return value
+
+
+def _positive_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number; got {text!r}") from None
+    if not (np.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number; got {text!r}")
+    return value
+
+
+# ----------------------------------------------------------------------------- input
+def _resolve(name):
+    """The path of ``FILE``: a file, a registered benchmark's name or a shipped example's name."""
+    p = Path(name)
+    if p.exists():
+        if p.is_dir():
+            raise LagolibError(f"{name}: is a folder, not a pose-graph file")
+        return p
+    if name in datasets.names():
+        d = datasets.info(name)
+        if d.kind != "graph":
+            raise LagolibError(
+                f"dataset {name!r} holds ground-truth poses, not a graph; give it to "
+                "'lagolib plot GRAPH --poses' instead"
+            )
+        return datasets.path(name)
+    if name in datasets.examples():
+        return datasets.data_dir() / f"{name}.g2o"
+    raise LagolibError(
+        f"{name}: no such file (nor a dataset name: 'lagolib datasets' lists them, and the "
+        f"shipped examples are {', '.join(datasets.examples())})"
+    )
+
+
+def _load(name, ignore_unknown):
+    """``(path, graph, has_vertex_lines)`` of ``FILE``."""
+    path = _resolve(name)
+    try:
+        graph = read(path, ignore_unknown=ignore_unknown)
+    except LagolibError as exc:
+        hint = "pass ignore_unknown=True"
+        if hint not in str(exc):
+            raise
+        # the reader's hint is for Python callers: say it for the shell
+        raise LagolibError(str(exc).replace(hint, "pass --ignore-unknown")) from exc
+    with open(path, "rb") as f:
+        has_vertices = _VERTEX_LINE.search(f.read()) is not None
+    return path, graph, has_vertices
+
+
+def _output_path(text, kinds, flag, command):
+    """``text`` as an output Path, its extension one of ``kinds`` and its folder existing."""
+    p = Path(text)
+    if p.suffix.lower() not in kinds:
+        raise _UsageError(
+            f"{command}: {flag} {text}: cannot tell the format from the extension {p.suffix or '(none)'!r}; "
+            f"use one of {', '.join(sorted(kinds))}"
+        )
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise LagolibError(f"{flag} {text}: the folder {folder} does not exist")
+    if p.is_dir():
+        raise LagolibError(f"{flag} {text}: is a folder")
+    return p
+
+
+def _image_kinds():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    return {f".{k}" for k in FigureCanvasAgg(Figure()).get_supported_filetypes()}
+
+
+# ----------------------------------------------------------------------------- info
+def _chain(graph):
+    """Links between consecutive ids: ``(gaps, backward_only)`` as lists of ``(id, next id)``."""
+    n = graph.n
+    if n < 2:
+        return [], []
+    r = graph.order
+    e = graph.edges
+    ri, rj = r[e[:, 0]], r[e[:, 1]]
+    forward = np.zeros(n - 1, dtype=bool)
+    backward = np.zeros(n - 1, dtype=bool)
+    forward[ri[rj == ri + 1]] = True
+    backward[rj[ri == rj + 1]] = True
+    ids = np.sort(graph.ids)
+
+    def pairs(mask):
+        k = np.flatnonzero(mask)
+        return [(int(ids[a]), int(ids[a + 1])) for a in k]
+
+    return pairs(~forward & ~backward), pairs(backward & ~forward)
+
+
+def _regularization(graph):
+    """Per spanning tree: chords, chords with ``k != 0``, chords near the rounding boundary."""
+    out = {}
+    for tree in topology.TREES:
+        try:
+            reg = regularize(graph, tree, margin_warning=0.0)
+        except GraphError as exc:
+            out[tree] = {"error": str(exc)}
+            continue
+        out[tree] = {
+            "chords": int(reg.chords.size),
+            "regularized": reg.n_regularized,
+            "near_boundary": int(reg.unreliable(MARGIN).size),
+        }
+    return out
+
+
+def _isotropy(graph):
+    """Counts of edges with isotropic translational information and with coupling."""
+    info = graph.information
+    scale = np.max(np.abs(info), axis=(1, 2))
+    tol = 1e-9 * scale
+    iso = (np.abs(info[:, 0, 0] - info[:, 1, 1]) <= tol) & (np.abs(info[:, 0, 1]) <= tol)
+    coupled = np.any(np.abs(info[:, :2, 2]) > tol[:, None], axis=1)
+    return int(iso.sum()), int(coupled.sum())
+
+
+def summarize(path, graph, has_vertices, error="t2v"):
+    """Everything ``lagolib info`` reports, as a JSON-ready dict.
+
+    Parameters
+    ----------
+    path : path-like
+        The file the graph was read from.
+    graph : PoseGraph
+    has_vertices : bool
+        Whether the file has vertex lines (else its poses are the odometry guess).
+    error : {"t2v", "log"}
+        Residual for the χ² (:func:`lagolib.graph.chi2`).
+
+    Returns
+    -------
+    dict
+    """
+    count, labels = graph.components()
+    sizes = np.sort(np.bincount(labels))[::-1] if graph.n else np.zeros(0, dtype=int)
+    gaps, backward = _chain(graph)
+    iso, coupled = _isotropy(graph)
+    return {
+        "file": str(path),
+        "format": detect_format(path),
+        "poses": graph.n,
+        "edges": graph.m,
+        "odometric": int(graph.odometric.sum()),
+        "loop_closures": int(graph.loop_closure.sum()),
+        "ids": [int(graph.ids.min()), int(graph.ids.max())],
+        "vertex_lines": bool(has_vertices),
+        "components": count,
+        "component_sizes": sizes.tolist(),
+        "chain_gaps": gaps,
+        "chain_backward": backward,
+        "cycles": graph.m - graph.n + count,
+        "regularization": _regularization(graph),
+        "isotropic": iso,
+        "coupled": coupled,
+        "chi2": chi2(graph, error=error),
+        "chi2_error": error,
+    }
+
+
+def _show_pairs(pairs, limit=8):
+    shown = ", ".join(f"{a} -> {b}" for a, b in pairs[:limit])
+    return shown + (f", ... ({len(pairs) - limit} more)" if len(pairs) > limit else "")
+
+
+def _render_info(s):
+    m = s["edges"]
+    lines = [
+        f"file              {s['file']} ({s['format']})",
+        f"poses             {s['poses']} (ids {s['ids'][0]}..{s['ids'][1]})",
+        f"edges             {m}: {s['odometric']} odometric (id k -> next id), "
+        f"{s['loop_closures']} loop closures",
+    ]
+    if s["components"] == 1:
+        lines.append("connectivity      connected (1 component)")
+    else:
+        sizes = ", ".join(map(str, s["component_sizes"][:6]))
+        more = ", ..." if s["components"] > 6 else ""
+        lines.append(
+            f"connectivity      NOT connected: {s['components']} components (sizes {sizes}{more})"
+        )
+    if s["chain_gaps"]:
+        lines.append(
+            f"odometric chain   broken: {len(s['chain_gaps'])} consecutive pair(s) without an edge: "
+            f"{_show_pairs(s['chain_gaps'])}"
+        )
+    else:
+        lines.append("odometric chain   complete: an edge between every pair of consecutive ids")
+    if s["chain_backward"]:
+        lines.append(
+            f"                  {len(s['chain_backward'])} link(s) stored backward only "
+            f"(k+1 -> k): {_show_pairs(s['chain_backward'])}"
+        )
+    lines.append(f"cycles            {s['cycles']} independent (m - n + components)")
+    lines.append(
+        "regularization    chords with k != 0 (Carlone et al. 2011, Thm. 3), per spanning tree:"
+    )
+    notes = {"min_uncertainty": "  [lago's default]", "odometric": "  [the paper's, Prop. 2]"}
+    for tree, r in s["regularization"].items():
+        if "error" in r:
+            reason = (
+                "the graph is not connected"
+                if s["components"] > 1
+                else "the odometric chain is broken"
+                if tree == "odometric"
+                else r["error"]
+            )
+            lines.append(f"  {tree:<16}n/a: {reason}")
+            continue
+        lines.append(
+            f"  {tree:<16}{r['regularized']:>6} of {r['chords']} chords  ({r['near_boundary']} "
+            f"within {MARGIN} turns of the rounding boundary){notes.get(tree, '')}"
+        )
+    lines.append(
+        f"information       translation isotropic (I11 = I22, I12 = 0) on {s['isotropic']} of {m} "
+        f"edges, anisotropic on {m - s['isotropic']}"
+    )
+    lines.append(
+        f"                  rotation-translation coupling (I13 or I23 != 0) on {s['coupled']} of "
+        f"{m} edges"
+    )
+    where = "the file's poses" if s["vertex_lines"] else "the odometry guess"
+    lines.append(
+        f"chi2              {s['chi2']:.10g} at {where} ({s['chi2_error']} error, g2o's chi2)"
+    )
+    if not s["vertex_lines"]:
+        lines.append(
+            "                  (the file has no vertex lines: its poses are the odometric "
+            "measurements composed from the origin)"
+        )
+    return "\n".join(lines)
+
+
+def _cmd_info(args):
+    path, graph, has_vertices = _load(args.file, args.ignore_unknown)
+    s = summarize(path, graph, has_vertices, args.error)
+    print(json.dumps(s, indent=1) if args.json else _render_info(s))
+    return 0
+
+
+# ----------------------------------------------------------------------------- progress
+class _Stamped(io.TextIOBase):
+    """A text stream that writes each complete line to ``sink`` with a prefix and the time."""
+
+    def __init__(self, sink, prefix, t0):
+        self.sink, self.prefix, self.t0, self._buf = sink, prefix, t0, ""
+
+    def writable(self):
+        return True
+
+    def write(self, text):
+        self._buf += text
+        *lines, self._buf = self._buf.split("\n")
+        for line in lines:
+            self.sink.write(f"{self.prefix}{line}  t {time.perf_counter() - self.t0:.3f} s\n")
+        self.sink.flush()
+        return len(text)
+
+
+def _sgd_progress(graph, error, sink, t0, chi_start):
+    """The ``callback(iteration, poses)`` that prints one line per SGD iteration."""
+    state = {"chi": chi_start, "poses": graph.poses.copy()}
+
+    def callback(iteration, poses):
+        poses = np.array(poses, dtype=float)
+        chi = chi2(graph, poses, error=error)
+        d = poses - state["poses"]
+        d[:, 2] = se2.wrap_angle(d[:, 2])
+        step = float(np.max(np.abs(d))) if d.size else 0.0
+        decrease = (state["chi"] - chi) / state["chi"] if state["chi"] else 0.0
+        sink.write(
+            f"[sgd] iter {iteration:4d}  chi2 {chi:.10g}  decrease {decrease:.2e}  "
+            f"|dx| {step:.2e}  t {time.perf_counter() - t0:.3f} s\n"
+        )
+        sink.flush()
+        state["chi"], state["poses"] = chi, poses
+
+    return callback
+
+
+# ----------------------------------------------------------------------------- solve
+def _check_solve_options(args):
+    m = args.method
+    if args.tree is not None and m not in ("lago", "lago+gn", "sgd"):
+        raise _UsageError(
+            f"solve: --tree is used by --method lago, lago+gn and sgd, not by --method {m}"
+        )
+    if args.iterations is not None and m == "lago":
+        raise _UsageError(
+            "solve: --iterations does not apply to --method lago (a closed form, no iterations); "
+            "use --method lago+gn to refine it"
+        )
+
+
+def _run_lago(graph, args, sink, t0):
+    kw = {} if args.tree is None else {"tree": args.tree}
+    res = lago(graph, **kw)
+    if sink is not None:
+        t = res.timings
+        sink.write(
+            f"[lago] tree {res.regularization.tree.kind}: {res.regularization.n_regularized} "
+            f"chords with k != 0  regularization {t['regularization'] * 1e3:.1f} ms  phase 1 "
+            f"{t['phase1'] * 1e3:.1f} ms  phase 2 {t['phase2'] * 1e3:.1f} ms  phase 3 "
+            f"{t['phase3'] * 1e3:.1f} ms  chi2 {chi2(graph, res.poses, error=args.error):.10g}  "
+            f"t {time.perf_counter() - t0:.3f} s\n"
+        )
+        sink.flush()
+    return res.poses
+
+
+def _run_optimize(graph, initial, method, args, sink, t0):
+    kw = {} if args.iterations is None else {"max_iterations": args.iterations}
+    stamped = _Stamped(sink, f"[{method}] ", t0) if sink is not None else None
+    with contextlib.redirect_stdout(stamped) if stamped else contextlib.nullcontext():
+        res = optimize(
+            graph, initial, method=method, error=args.error, verbose=sink is not None, **kw
+        )
+    note = "" if res.converged else f" (not converged: {res.reason})"
+    return res.poses, res.iterations, note
+
+
+def _run_sgd(graph, args, sink, t0, chi_start):
+    from . import sgd as sgd_module  # written alongside this command (issue 13)
+
+    kw = {} if args.iterations is None else {"iterations": args.iterations}
+    if args.tree is not None:
+        kw["tree"] = args.tree
+    if sink is not None:
+        kw["callback"] = _sgd_progress(graph, args.error, sink, t0, chi_start)
+    res = sgd_module.sgd(graph, **kw)
+    return np.asarray(res.poses, dtype=float), int(res.iterations)
+
+
+def _cmd_solve(args):
+    _check_solve_options(args)
+    output = _output_path(args.output, _GRAPH_SUFFIXES, "-o", "solve")
+    image = _output_path(args.plot, _image_kinds(), "--plot", "solve") if args.plot else None
+    path, graph, has_vertices = _load(args.file, args.ignore_unknown)
+    sink = sys.stderr if args.progress else None
+    before = chi2(graph, error=args.error)
+    t0 = time.perf_counter()
+    if sink is not None:
+        start = "the file's poses" if has_vertices else "the odometry guess (no vertex lines)"
+        sink.write(f"[{args.method}] start: chi2 {before:.10g} at {start}\n")
+        sink.flush()
+    note = ""
+    if args.method == "lago":
+        poses, iterations = _run_lago(graph, args, sink, t0), 0
+    elif args.method in ("gn", "lm"):
+        poses, iterations, note = _run_optimize(graph, None, args.method, args, sink, t0)
+    elif args.method == "lago+gn":
+        start = _run_lago(graph, args, sink, t0)
+        poses, iterations, note = _run_optimize(graph, start, "gn", args, sink, t0)
+    else:
+        poses, iterations = _run_sgd(graph, args, sink, t0, before)
+    seconds = time.perf_counter() - t0
+    if not np.all(np.isfinite(poses)):
+        bad = int(np.flatnonzero(~np.all(np.isfinite(poses), axis=1))[0])
+        raise LagolibError(
+            f"--method {args.method} diverged: the pose of vertex id {graph.ids[bad]} is not "
+            f"finite after {iterations} iterations; nothing was written (try another method, "
+            "e.g. lago+gn)"
+        )
+    solved = graph.with_poses(poses)
+    after = chi2(solved, error=args.error)
+    write(solved, output)
+    if image is not None:
+        title = f"{Path(path).name}: {args.method}, chi2 {after:.6g}"
+        _save_figure(lambda ax: _draw_graph(ax, solved, title), image, args.dpi)
+    wrote = f"wrote {output}" + (f" and {image}" if image else "")
+    print(
+        f"{args.method}: chi2 {before:.10g} -> {after:.10g} ({args.error}), {iterations} "
+        f"iterations, {seconds:.3f} s{note}; {wrote}"
+    )
+    return 0
+
+
+# ----------------------------------------------------------------------------- plot
+def _save_figure(draw, output, dpi):
+    """Draw on a new Agg figure (``_INCHES`` square, ``dpi``) and save it; pyplot is not used."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(_INCHES, _INCHES), dpi=dpi)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    draw(ax)
+    fig.savefig(output, dpi=dpi)
+
+
+def _draw_graph(ax, graph, title):
+    from .plotting import plot_graph
+
+    plot_graph(graph, ax=ax, title=title)
+
+
+def _poses_for(graph, name):
+    """Poses for every vertex of ``graph`` from ``--poses`` (a pose list or a graph file)."""
+    p = Path(name)
+    if not p.is_file():
+        raise LagolibError(f"--poses {name}: no such file")
+    if p.suffix.lower() in _GRAPH_SUFFIXES:
+        other = read(p)
+        ids, poses = other.ids, other.poses
+    else:
+        ids, poses = read_poses(p)
+    try:
+        rows = vertex_rows(graph, ids, f"--poses {name}")
+    except GraphError as exc:
+        raise LagolibError(
+            f"{exc} (the graph has ids {graph.ids.min()}..{graph.ids.max()})"
+        ) from exc
+    if rows.size != graph.n:
+        missing = np.setdiff1d(graph.ids, ids)
+        raise LagolibError(
+            f"--poses {name}: gives poses for {rows.size} of the graph's {graph.n} vertices; "
+            f"missing ids {', '.join(map(str, missing[:8]))}{', ...' if missing.size > 8 else ''}"
+        )
+    out = np.empty((graph.n, 3))
+    out[rows] = poses
+    return out
+
+
+def _cmd_plot(args):
+    output = _output_path(args.output, _image_kinds(), "-o", "plot")
+    path, graph, _ = _load(args.file, args.ignore_unknown)
+    if args.poses is not None:
+        graph = graph.with_poses(_poses_for(graph, args.poses))
+    covariances = None
+    if args.ellipses:
+        from .uncertainty import marginal_covariances
+
+        every = args.every or max(1, graph.n // 100)
+        rows = np.arange(0, graph.n, every)
+        covariances = rows, marginal_covariances(graph, graph.ids[rows])
+    title = args.title if args.title is not None else Path(path).name
+
+    def draw(ax):
+        _draw_graph(ax, graph, title)
+        if covariances is not None:
+            from .plotting import plot_covariance_ellipses
+
+            rows, cov = covariances
+            plot_covariance_ellipses(graph.poses[rows], cov, ax, n_sigma=args.sigma)
+
+    _save_figure(draw, output, args.dpi)
+    what = f" with {covariances[0].size} {args.sigma:g}-sigma ellipses" if covariances else ""
+    print(f"wrote {output} ({graph.n} poses, {graph.m} edges{what})")
+    return 0
+
+
+# ----------------------------------------------------------------------------- datasets
+def _where(name):
+    d = datasets.info(name)
+    root = datasets.mirror()
+    if root is not None:
+        p = root / d.relpath
+        if p.is_file():
+            return "mirror", str(p)
+        return "missing", f"not in the mirror LAGOLIB_DATA={root}: get it from {d.url}"
+    try:
+        cache = datasets.cache_dir()
+    except ImportError:  # pooch is needed for the default cache folder and for downloads
+        return "url", f"would be fetched from {d.url} (needs pooch)"
+    p = cache / d.relpath.replace("/", "__")
+    if p.is_file():
+        return "cache", str(p)
+    return "url", f"would be fetched from {d.url}"
+
+
+def _cmd_datasets(args):
+    rows = []
+    for name in datasets.names():
+        d = datasets.info(name)
+        status, where = _where(name)
+        rows.append(
+            {
+                "name": name,
+                "kind": d.kind,
+                "vertices": d.vertices,
+                "edges": d.edges,
+                "status": status,
+                "where": where,
+                "url": d.url,
+                "description": d.description,
+            }
+        )
+    examples = []
+    for name in datasets.examples():
+        p = datasets.data_dir() / f"{name}.g2o"
+        g = read(p)
+        examples.append({"name": name, "vertices": g.n, "edges": g.m, "where": str(p)})
+    if args.json:
+        print(json.dumps({"datasets": rows, "examples": examples}, indent=1))
+        return 0
+    root = datasets.mirror()
+    if root is not None:
+        print(f"benchmarks (from the mirror LAGOLIB_DATA={root}):")
+    else:
+        try:
+            cache = f" {datasets.cache_dir()}"
+        except ImportError:
+            cache = ""
+        print(f"benchmarks (LAGOLIB_DATA is unset: downloaded on first use into the cache{cache}):")
+    print(f"  {'name':<18}{'kind':<7}{'vertices':>9}{'edges':>8}  where")
+    for r in rows:
+        v = r["vertices"] if r["vertices"] or r["kind"] != "graph" else "-"
+        print(f"  {r['name']:<18}{r['kind']:<7}{v:>9}{r['edges']:>8}  {r['where']}")
+    print("  (vertices '-': the file has edge lines only; poses come from the odometry guess)")
+    print("shipped examples (offline, simulated with ground truth):")
+    for e in examples:
+        print(f"  {e['name']:<18}{'graph':<7}{e['vertices']:>9}{e['edges']:>8}  {e['where']}")
+    return 0
+
+
+# ----------------------------------------------------------------------------- parser
+def _parser():
+    debug = _Parser(add_help=False)
+    debug.add_argument(
+        "--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks"
+    )
+    reading = _Parser(add_help=False)
+    reading.add_argument(
+        "--ignore-unknown",
+        action="store_true",
+        help="skip lines with tags lagolib does not read (FIX, VERTEX_XY, ...) instead of failing",
+    )
+    file_help = (
+        "g2o (VERTEX_SE2/EDGE_SE2) or TORO (VERTEX2/EDGE2) file, or a name from 'lagolib datasets'"
+    )
+
+    top = _Parser(
+        prog="lagolib",
+        formatter_class=_Formatter,
+        description=(
+            "Planar pose-graph SLAM from the shell: inspect, solve (LAGO, Gauss-Newton, "
+            "Levenberg-Marquardt, SGD) and plot g2o/TORO files.\n\n"
+            "examples:\n"
+            "  lagolib info intel\n"
+            "  lagolib solve graph.g2o --method lago+gn --progress -o solved.g2o --plot solved.png\n"
+            "  lagolib plot solved.g2o --ellipses -o solved.png\n"
+            "  lagolib datasets\n\n"
+            "exit status: 0 ok, 1 error, 2 usage error, 130 interrupted"
+        ),
+    )
+    top.add_argument("--debug", action="store_true", help="show the traceback of an error")
+    sub = top.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    p = sub.add_parser(
+        "info",
+        parents=[debug, reading],
+        formatter_class=_Formatter,
+        help="what is in a pose-graph file",
+        description=(
+            "Counts (poses, edges, odometric edges, loop closures), connectivity, the odometric\n"
+            "chain (the consecutive-id pairs without an edge are named), the chords LAGO must\n"
+            "regularize (k != 0, Carlone et al. 2011 Thm. 3) for each spanning tree lagolib has,\n"
+            "how many edges have isotropic translational information or rotation-translation\n"
+            "coupling, and chi2 at the file's poses.\n\n"
+            "example:\n  lagolib info data/square_loop.g2o\n  lagolib info intel --json"
+        ),
+    )
+    p.add_argument("file", metavar="FILE", help=file_help)
+    p.add_argument("--error", choices=ERRORS, default="t2v", help="residual for chi2")
+    p.add_argument("--json", action="store_true", help="print the numbers as JSON")
+    p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser(
+        "solve",
+        parents=[debug, reading],
+        formatter_class=_Formatter,
+        help="optimize a pose graph and write the result",
+        description=(
+            "Solve a pose graph and write it (g2o, or TORO for .graph) with the optimized poses.\n"
+            "  lago     Carlone et al.'s linear approximation (closed form, no initial guess)\n"
+            "  gn, lm   Gauss-Newton / Levenberg-Marquardt from the file's poses\n"
+            "  lago+gn  Gauss-Newton from LAGO's poses\n"
+            "  sgd      stochastic gradient descent on a tree parameterization (TORO-style)\n"
+            "--progress prints one line per iteration on stderr (chi2, relative decrease, max\n"
+            "|dx|, elapsed time); one summary line goes to stdout.\n\n"
+            "example:\n"
+            "  lagolib solve intel --method lago+gn --progress -o intel_solved.g2o"
+        ),
+    )
+    p.add_argument("file", metavar="FILE", help=file_help)
+    p.add_argument("--method", "-m", choices=METHODS, default="lago+gn", help="the solver")
+    p.add_argument(
+        "--tree",
+        choices=topology.TREES,
+        default=None,
+        help="spanning tree for lago and lago+gn (default: min_uncertainty) and for sgd "
+        "(default: sgd's own)",
+    )
+    p.add_argument(
+        "--error",
+        choices=ERRORS,
+        default="t2v",
+        help="residual: g2o's t2v or GTSAM's log; minimized by gn/lm, reported for all",
+    )
+    p.add_argument(
+        "--iterations",
+        "-n",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help="at most N iterations for gn, lm and the gn of lago+gn (default: 100); N for sgd "
+        "(default: sgd's own)",
+    )
+    p.add_argument(
+        "-o", "--output", required=True, metavar="OUT", help="where to write (.g2o or .graph)"
+    )
+    p.add_argument("--plot", metavar="PNG", help="also draw the solved graph into this image")
+    p.add_argument("--dpi", type=_positive_int, default=_DPI, help="resolution of --plot")
+    p.add_argument("--progress", action="store_true", help="per-iteration lines on stderr")
+    p.set_defaults(func=_cmd_solve)
+
+    p = sub.add_parser(
+        "plot",
+        parents=[debug, reading],
+        formatter_class=_Formatter,
+        help="draw a pose graph",
+        description=(
+            "Draw a pose graph: odometric edges solid, loop closures dotted (Carlone et al. 2011,\n"
+            f"Fig. 1), into a {_INCHES:g} x {_INCHES:g} inch image ({_INCHES * _DPI:.0f} pixels "
+            f"square at the default {_DPI} dpi).\n"
+            "--ellipses adds each pose's position uncertainty (the marginal covariance of the\n"
+            "least-squares problem linearized at the drawn poses, first pose fixed): meaningful\n"
+            "at an optimum, e.g. the output of 'lagolib solve'.\n\n"
+            "example:\n"
+            "  lagolib plot intel_solved.g2o --ellipses -o intel.png\n"
+            "  lagolib plot ring --poses ring_truth.txt -o ring_truth.png"
+        ),
+    )
+    p.add_argument("file", metavar="FILE", help=file_help)
+    p.add_argument(
+        "--poses",
+        metavar="P",
+        help="draw at these poses: 'id x y theta' (or 'x y theta') lines, or a .g2o/.graph file",
+    )
+    p.add_argument("--ellipses", action="store_true", help="draw covariance ellipses")
+    p.add_argument(
+        "--every",
+        type=_positive_int,
+        default=None,
+        metavar="K",
+        help="an ellipse on every K-th pose (default: about 100 ellipses)",
+    )
+    p.add_argument("--sigma", type=_positive_float, default=3.0, help="ellipse size in sigmas")
+    p.add_argument("--title", default=None, help="title (default: the file name)")
+    p.add_argument("--dpi", type=_positive_int, default=_DPI, help="resolution")
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="image (.png, .pdf, .svg)")
+    p.set_defaults(func=_cmd_plot)
+
+    p = sub.add_parser(
+        "datasets",
+        parents=[debug],
+        formatter_class=_Formatter,
+        help="the registered benchmarks and where they are",
+        description=(
+            "List the registered benchmarks (name, kind, vertex and edge counts) and where each\n"
+            "one is: in the LAGOLIB_DATA mirror, in the download cache, or the URL it would be\n"
+            "fetched from on first use; then the examples shipped with lagolib.\n\n"
+            "example:\n  LAGOLIB_DATA=/data/posegraphs lagolib datasets"
+        ),
+    )
+    p.add_argument("--json", action="store_true", help="print the list as JSON")
+    p.set_defaults(func=_cmd_datasets)
+
+    sub.add_parser("book", add_help=False, help="the book's tools (lagolib book --help)")
+    return top
+
+
+# ----------------------------------------------------------------------------- main
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"lagolib: warning: {message}", file=sys.stderr)
+
+
+def _one_line(exc):
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        return f"{exc.filename}: {exc.strerror}"
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__
+
+
+def _dispatch(argv):
+    rest = list(argv)
+    while rest and rest[0] == "--debug":
+        rest.pop(0)
+    if rest and rest[0] in COMMANDS:
+        return COMMANDS[rest[0]](rest[1:])
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        raise _UsageError("a command is required (info, solve, plot, datasets, book)")
+    return args.func(args)
 
 
 def main(argv=None) -> int:
-    argv = sys.argv[1:] if argv is None else list(argv)
-    if not argv or argv[0] in ("-h", "--help"):
-        print(USAGE)
-        return 0 if argv else 2
-    command = COMMANDS.get(argv[0])
-    if command is None:
-        print(f"lagolib: unknown command {argv[0]!r}\n{USAGE}", file=sys.stderr)
+    """Run ``lagolib`` with ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
+    argv = sys.argv[1:] if argv is None else [os.fspath(a) for a in argv]
+    debug = "--debug" in argv
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            # numpy's overflow/invalid-value warnings: a failure they announce is reported as an
+            # error (non-finite poses, lagolib's own checks), one line instead of several
+            warnings.simplefilter("ignore", RuntimeWarning)
+            warnings.showwarning = _show_warning
+            return _dispatch(argv)
+    except SystemExit as exc:  # --help, and the book's argparse
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    except KeyboardInterrupt:
+        print("lagolib: interrupted", file=sys.stderr)
+        return 130
+    except _UsageError as exc:
+        if debug:
+            traceback.print_exc()
+        command = next((a for a in argv if not a.startswith("-")), None)
+        hint = f"lagolib {command} --help" if command in ("info", "solve", "plot") else None
+        hint = hint or "lagolib --help"
+        print(f"lagolib: error: {_one_line(exc)} (see '{hint}')", file=sys.stderr)
         return 2
-    return command(argv[1:])
+    except BrokenPipeError:  # e.g. 'lagolib datasets | head -1'
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+    except Exception as exc:
+        if debug:
+            traceback.print_exc()
+        usage = isinstance(exc, OptionError | OptionTypeError)
+        known = isinstance(exc, LagolibError | OSError)
+        text = _one_line(exc)
+        if not known:
+            text = (
+                f"internal error: {type(exc).__name__}: {text} (rerun with --debug for the "
+                "traceback, and please report it)"
+            )
+        print(f"lagolib: error: {text}", file=sys.stderr)
+        return 2 if usage else 1
 
 
 if __name__ == "__main__":
