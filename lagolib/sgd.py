@@ -45,7 +45,7 @@ numbers are not TORO's:
 
 References
 ----------
-.. [1] E. Olson, J. Leonard, S. Teller, "Fast Iterative Alignment of Pose Graphs with Poor
+.. [1] E. Olson, J. Leonard, S. Teller, "Fast Iterative Optimization of Pose Graphs with Poor
    Initial Estimates", ICRA 2006.
 .. [2] G. Grisetti, C. Stachniss, S. Grzonka, W. Burgard, "A Tree Parameterization for Efficiently
    Computing Maximum Likelihood Maps using Gradient Descent", Robotics: Science and Systems 2007.
