@@ -100,28 +100,22 @@ class TreeParameterization:
     end: np.ndarray
     lca: np.ndarray
     path_length: np.ndarray
+    ends: sp.csr_matrix  # (n, m): +1 at each edge's two ends, −2 at their common ancestor
+    _diff: sp.csr_matrix  # (n + 1, n): +1 at (start[k], k), −1 at (end[k], k)
 
     def subtree_sums(self, q):
         """``out[k] = Σ_{v in subtree(k)} q[v]``; ``q`` of shape (n,) or (n, d)."""
-        prefix = np.concatenate([np.zeros((1,) + q.shape[1:]), np.cumsum(q[self.preorder], 0)])
+        prefix = np.zeros((q.shape[0] + 1,) + q.shape[1:])
+        np.cumsum(q[self.preorder], 0, out=prefix[1:])
         return prefix[self.end] - prefix[self.start]
 
     def add_to_subtrees(self, dx):
         """``out[v] = Σ_{k ancestor of v, or v} dx[k]``: what adding ``dx[k]`` to the subtree of
         every ``k`` does.  Also the sum of ``dx`` along each vertex's path to the root."""
-        n = self.preorder.size
-        cols = dx.reshape(n, -1)
-        diff = np.stack(
-            [
-                np.bincount(self.start, c, minlength=n + 1)
-                - np.bincount(self.end, c, minlength=n + 1)
-                for c in cols.T
-            ],
-            axis=1,
-        )
-        out = np.empty_like(cols)
+        diff = self._diff @ dx  # a difference array over the preorder
+        out = np.empty_like(dx, dtype=float)
         out[self.preorder] = np.cumsum(diff[:-1], 0)
-        return out.reshape(dx.shape)
+        return out
 
 
 def tree_parameterization(graph, tree="bfs", anchor=None):
@@ -156,7 +150,19 @@ def tree_parameterization(graph, tree="bfs", anchor=None):
     length = t.depth[graph.edges[:, 0]] + t.depth[graph.edges[:, 1]] - 2 * t.depth[lca]
     for a in (preorder, start, end, lca, length):
         a.setflags(write=False)
-    return TreeParameterization(t, preorder, start, end, lca, length)
+    m, k = graph.m, np.arange(n)
+    ends = sp.csr_matrix(
+        (
+            np.repeat([1.0, 1.0, -2.0], m),
+            (np.concatenate([graph.edges[:, 0], graph.edges[:, 1], lca]), np.tile(np.arange(m), 3)),
+        ),
+        shape=(n, m),
+    )
+    diff = sp.csr_matrix(
+        (np.repeat([1.0, -1.0], n), (np.concatenate([start, end]), np.concatenate([k, k]))),
+        shape=(n + 1, n),
+    )
+    return TreeParameterization(t, preorder, start, end, lca, length, ends, diff)
 
 
 def _lowest_common_ancestors(tree, a, b):
@@ -211,14 +217,7 @@ def _step_sizes(graph, par, theta, t, gamma):
     """
     e, n = graph.edges, graph.n
     omega = _global_information_diagonal(graph, theta)
-    q = np.zeros((n, 3))
-    for d in range(3):
-        q[:, d] = (
-            np.bincount(e[:, 0], omega[:, d], n)
-            + np.bincount(e[:, 1], omega[:, d], n)
-            - 2.0 * np.bincount(par.lca, omega[:, d], n)
-        )
-    M = par.subtree_sums(q)
+    M = par.subtree_sums(par.ends @ omega)
     inv_M = np.zeros_like(M)
     free = par.tree.parent != np.arange(n)
     inv_M[free] = 1.0 / M[free]
@@ -235,14 +234,17 @@ class _Rounds:
     """The sequential order of per-constraint updates, cut into rounds of constraints whose tree
     paths share no parameter.  Within a pass over one coordinate a constraint's residual
     depends only on the parameters of its path, and its update changes only those, so the
-    constraints of a round can be updated at once and the result equals the one-at-a-time order:
-    round(c) = 1 + the latest round of an earlier constraint sharing a parameter with c."""
+    constraints of a round can be updated at once and the result equals the one-at-a-time order.
 
-    constraints: list  # per round: constraint indices (k,)
-    nodes: list  # per round: the parameters on their paths, concatenated (e,)
-    signs: list  # per round: (e, 1), −1 on the tail's side
-    segment: list  # per round: (e,), position of each entry's constraint in the round
-    starts: list  # per round: (k,), where each constraint's entries start
+    ``constraints`` (K,) are all constraints, round after round, and ``nodes``/``signs`` (E,) the
+    parameters on their paths (−1 on the tail's side); per round: the slices of both and, for its
+    entries, the position of their constraint in the round and where each constraint starts.
+    """
+
+    constraints: np.ndarray
+    nodes: np.ndarray
+    signs: np.ndarray
+    rounds: list  # per round: (constraint slice, entry slice, nodes, signs (e,), segment, starts)
 
 
 def _rounds(paths, order):
@@ -259,19 +261,22 @@ def _rounds(paths, order):
         groups[r].append(c)
         for k, _ in paths[c]:
             used.setdefault(k, set()).add(r)
-    out = _Rounds([], [], [], [], [])
+    cons = [c for cs in groups for c in cs]
+    nodes = np.array([k for c in cons for k, _ in paths[c]], dtype=np.int64)
+    signs = np.array([s for c in cons for _, s in paths[c]])
+    rounds, c0, e0 = [], 0, 0
     for cs in groups:
-        lengths = [len(paths[c]) for c in cs]
-        out.constraints.append(np.array(cs, dtype=np.int64))
-        out.nodes.append(np.array([k for c in cs for k, _ in paths[c]], dtype=np.int64))
-        out.signs.append(np.array([s for c in cs for _, s in paths[c]])[:, None])
-        out.segment.append(np.repeat(np.arange(len(cs)), lengths))
-        out.starts.append(np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64))
-    return out
+        lengths = np.array([len(paths[c]) for c in cs], dtype=np.int64)
+        c1, e1 = c0 + len(cs), e0 + int(lengths.sum())
+        starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+        segment = np.repeat(np.arange(len(cs)), lengths)
+        rounds.append((slice(c0, c1), slice(e0, e1), nodes[e0:e1], signs[e0:e1], segment, starts))
+        c0, e0 = c1, e1
+    return _Rounds(np.array(cons, dtype=np.int64), nodes, signs, rounds)
 
 
 def _sweep(rounds, x, target, g, inv_M, wrap):
-    """One pass of per-constraint updates over coordinates ``x`` (n, d) (Grisetti et al. 2007,
+    """One pass of per-constraint updates over one coordinate ``x`` (n,) (Grisetti et al. 2007,
     the update rule), in place.
 
     For each constraint ``c``: its residual is ``r = target_c − Σ_{k∈P_c} s_k x_k`` (``p_b − p_a``
@@ -279,13 +284,14 @@ def _sweep(rounds, x, target, g, inv_M, wrap):
     ``s_k f_c r M_k⁻¹ / S_c`` — so the path's sum moves by exactly ``f_c r``.  A round at a time
     (:class:`_Rounds`); :func:`sgd_reference` does the same one constraint at a time.
     """
-    for c, k, s, seg, starts in zip(
-        rounds.constraints, rounds.nodes, rounds.signs, rounds.segment, rounds.starts
-    ):
-        r = target[c] - np.add.reduceat(s * x[k], starts, axis=0)  # residual, global frame
+    target, g = target[rounds.constraints], g[rounds.constraints]  # in round order
+    coef = rounds.signs * inv_M[rounds.nodes]  # s_k M_k⁻¹ of every path entry
+    for cs, es, k, s, seg, starts in rounds.rounds:
+        xk = x[k]
+        r = target[cs] - np.add.reduceat(s * xk, starts)  # residual, global frame
         if wrap:
             r = _wrap(r)
-        x[k] += s * (g[c] * r)[seg] * inv_M[k]  # the update; no parameter twice in a round
+        x[k] = xk + coef[es] * (g[cs] * r)[seg]  # the update; no parameter twice in a round
 
 
 def _iterate(graph, par, rounds, x, t, gamma):
@@ -293,15 +299,16 @@ def _iterate(graph, par, rounds, x, t, gamma):
     orientation residual first, then — with the new orientations — its translational one."""
     theta = par.add_to_subtrees(x[:, 2])  # absolute orientations, unwrapped
     inv_M, g = _step_sizes(graph, par, theta, t, gamma)
-    xt = x[:, 2:].copy()
-    _sweep(rounds, xt, graph.measurements[:, 2:], g[:, 2:], inv_M[:, 2:], True)
-    x[:, 2:] = xt
+    xd = x[:, 2].copy()
+    _sweep(rounds, xd, graph.measurements[:, 2], g[:, 2], inv_M[:, 2], True)
+    x[:, 2] = xd
     theta = par.add_to_subtrees(x[:, 2])
     a = graph.edges[:, 0]
     u = np.einsum("kij,kj->ki", se2.rotation(theta[a]), graph.measurements[:, :2])  # R(θ_a) Δ_ab
-    xy = x[:, :2].copy()
-    _sweep(rounds, xy, u, g[:, :2], inv_M[:, :2], False)
-    x[:, :2] = xy
+    for d in range(2):  # x and y are independent once the orientations are fixed
+        xd = x[:, d].copy()
+        _sweep(rounds, xd, u[:, d], g[:, d], inv_M[:, d], False)
+        x[:, d] = xd
 
 
 def _tree_paths(graph, par):
@@ -505,7 +512,7 @@ def sgd_reference(graph, initial=None, *, iterations=100, tree="bfs", anchor=Non
     subtree = [par.preorder[par.start[k] : par.end[k]] for k in range(n)]
     gamma = _learning_rate_scale(graph)
     paths = _tree_paths(graph, par)
-    order = np.concatenate(_rounds(paths, _processing_order(par)).constraints)  # round by round
+    order = _rounds(paths, _processing_order(par)).constraints  # round by round
     for t in range(1, iterations + 1):
         omega = _global_information_diagonal(graph, p[:, 2])
         M = np.zeros((n, 3))

@@ -85,10 +85,10 @@ def test_rounds_never_touch_a_parameter_twice(world):
     graph, _ = world
     par = tree_parameterization(graph, "bfs")
     rounds = _rounds(_tree_paths(graph, par), list(range(graph.m)))
-    for nodes in rounds.nodes:
+    for _, _, nodes, _, _, _ in rounds.rounds:
         assert np.unique(nodes).size == nodes.size
-    assert sorted(np.concatenate(rounds.constraints).tolist()) == list(range(graph.m))
-    assert len(rounds.constraints) >= 2
+    assert sorted(rounds.constraints.tolist()) == list(range(graph.m))
+    assert len(rounds.rounds) >= 2
 
 
 def test_error_falls_to_near_the_optimum():
