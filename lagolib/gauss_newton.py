@@ -777,6 +777,7 @@ def optimize(
     lambda_initial=1e-5,
     max_backtracks=10,
     verbose=False,
+    callback=None,
 ):
     """Minimize ``sum e_ij^T Omega_ij e_ij`` by Gauss–Newton or Levenberg–Marquardt.
 
@@ -833,6 +834,9 @@ def optimize(
         GN's step halvings before giving up (``>= 0``).
     verbose : bool
         Print one progress line per iteration.
+    callback : callable, optional
+        ``callback(iteration, poses)`` after every accepted step (``poses``: the new iterate, a
+        copy) — e.g. to record a metric per iteration.
 
     Returns
     -------
@@ -876,6 +880,11 @@ def optimize(
     lambda_initial = check_real(lambda_initial, "lambda_initial", where, minimum=0.0, strict=True)
     max_backtracks = check_int(max_backtracks, "max_backtracks", where, minimum=0)
     verbose = check_bool(verbose, "verbose", where)
+    if callback is not None and not callable(callback):
+        raise OptionTypeError(
+            f"{where}: callback must be a function callback(iteration, poses) or None; got "
+            f"{type(callback).__name__}"
+        )
     fixed, priors = resolve_gauge(graph, fixed, prior)
     x = as_graph_poses(graph, initial, "initial", "initial guess")
     system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
@@ -918,6 +927,8 @@ def optimize(
         lam, alpha = control.accept()
         decrease = trace.accept(chi, chi_new, dx, lam, alpha, solve.iterations)
         x, chi = x_new, chi_new
+        if callback is not None:
+            callback(trace.iterations, x.copy())
         stop = _stop_after_step(decrease, trace.steps[-1], tol, step_tol)  # converged?
         if stop is None and trace.iterations < max_iterations:
             H, b, _ = trace.timed("assembly", system.assemble, x)  # build H and b

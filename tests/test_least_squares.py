@@ -246,6 +246,22 @@ def test_verbose_prints_one_line_per_iteration(noisy, capsys):
     assert lines[1].startswith("iter   1  chi2 ")
 
 
+def test_callback_sees_every_accepted_iterate(noisy):
+    seen = []
+    res = lagolib.optimize(noisy, callback=lambda k, x: seen.append((k, x)))
+    assert [k for k, _ in seen] == list(range(1, res.iterations + 1))
+    assert np.array_equal(seen[-1][1], res.poses)
+    # restarting one iteration at a time gives the same iterates (GN keeps no state between them)
+    x = noisy.poses
+    for _k, xk in seen[:3]:
+        x = lagolib.optimize(noisy, x, max_iterations=1).poses
+        np.testing.assert_allclose(x, xk, atol=1e-12)
+    chis = [lagolib.chi2(noisy, xk) for _, xk in seen]
+    np.testing.assert_allclose(chis, res.chi2_history[1:], rtol=1e-12)
+    with pytest.raises(lagolib.OptionTypeError, match="callback"):
+        lagolib.optimize(noisy, callback="print")
+
+
 def test_gauge_errors_name_the_component_and_the_fix(noisy):
     with pytest.raises(GaugeError, match=r"no gauge.*fixed=\[0\].*Prior\(0\)"):
         lagolib.optimize(noisy, fixed=[])

@@ -98,6 +98,8 @@ def test_error_falls_to_near_the_optimum():
     assert res.chi2_history[0] > 50 * res.chi2
     assert res.chi2 < 1.1 * gn.chi2  # 341.8 vs 321.7
     assert len(res.chi2_history) == 51 and res.iterations == 50
+    short = sgd(ex.graph, iterations=50, history=False)
+    assert short.chi2_history == [res.chi2_history[0], res.chi2] and short.chi2 == res.chi2
 
 
 def test_noiseless_graph_is_recovered_from_a_perturbed_start():
@@ -132,6 +134,8 @@ def test_bad_input_is_named():
         sgd(ex.graph, iterations=-1)
     with pytest.raises(OptionTypeError, match="callback"):
         sgd(ex.graph, iterations=1, callback=3)
+    with pytest.raises(OptionTypeError, match="history"):
+        sgd(ex.graph, iterations=1, history="yes")
     with pytest.raises(OptionTypeError, match="PoseGraph"):
         sgd(ex.graph.poses)
     with pytest.raises(GraphError, match="initial"):
