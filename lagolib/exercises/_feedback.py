@@ -274,14 +274,27 @@ def compare_int(got, expected: int, *, name: str = "your answer") -> str | None:
     )
 
 
+_DASHES = str.maketrans({c: "-" for c in "\u2010\u2011\u2012\u2013\u2014\u2212"})
+
+
 @_never_raises
 def compare_choice(got, expected, choices, *, name: str = "your answer") -> str | None:
-    """None if ``got`` is the choice ``expected`` (strings compared case-insensitively)."""
+    """None if ``got`` is the choice ``expected``.
+
+    Strings are compared ignoring case, repeated spaces, and the difference between a hyphen,
+    the dashes a rendered page shows (‐ ‑ ‒ – — −) and a space: ``"Gauss–Newton"`` as printed in a
+    chapter is the choice ``"Gauss-Newton"``.
+    """
     if is_placeholder(got):
         return NOT_ATTEMPTED
 
     def norm(x):
-        return x.strip().lower() if isinstance(x, str) else x
+        # "Gauss–Newton" (en dash, as the chapters print it), "gauss-newton", " Gauss  Newton":
+        # the same choice; only hyphens, dashes, spaces and case are normalized
+        if not isinstance(x, str):
+            return x
+        x = x.translate(_DASHES).replace("-", " ")
+        return " ".join(x.lower().split())
 
     def same(a, b):
         # a numpy array or an odd object compares elementwise or raises: it is not a choice

@@ -185,9 +185,22 @@ def _diagnose_eta(got, graph, poses, expected):
             "satisfaction metrics count every constraint equally, whatever its uncertainty.",
             "square the plain translation and angle errors; leave graph.information out.",
         )
+    tr, ar = _errors(graph, poses)
+    for mask, which in (
+        (graph.loop_closure, "loop closures"),
+        (graph.odometric, "odometric edges"),
+    ):
+        if mask.any() and (
+            near(gc, np.mean(np.sum(tr[mask] ** 2, axis=1))) or near(ga, np.mean(ar[mask] ** 2))
+        ):
+            return (
+                f"your numbers are means over the {which} only.",
+                f"eta averages over all {m} constraints, odometric edges and loop closures alike.",
+            )
     return (pc or pa), (
         "for every edge (i, j): E = Z⁻¹ X_i⁻¹ X_j; eta_c = mean of ||t(E)||², eta_a = mean of "
-        "wrap(θ(E))². lagolib.se2.between(z, lagolib.se2.between(x_i, x_j)) gives E as (x, y, θ)."
+        "wrap(θ(E))². Compose the poses as transforms: first X_i⁻¹ X_j, then apply Z⁻¹ "
+        "(chapter 1's se2 helpers)."
     )
 
 
