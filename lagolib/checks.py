@@ -17,6 +17,7 @@ lagolib.errors.OptionError: optimize: tolerance must be a finite number >= 0.0; 
 
 from __future__ import annotations
 
+import inspect
 import math
 import numbers
 
@@ -24,7 +25,7 @@ import numpy as np
 
 from .errors import OptionError, OptionTypeError
 
-__all__ = ["check_int", "check_real", "check_choice", "check_bool", "real_array"]
+__all__ = ["check_int", "check_real", "check_choice", "check_bool", "check_callback", "real_array"]
 
 
 def check_int(value, name, where, *, minimum=None, maximum=None):
@@ -83,3 +84,26 @@ def real_array(value, name, where):
         return np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise OptionTypeError(f"{where}: {name} must be a real number or array: {exc}") from None
+
+
+def check_callback(value, name, where, arguments=("iteration", "poses")):
+    """``value`` if it is None or a function that accepts ``len(arguments)`` positional
+    arguments; else :class:`~lagolib.errors.OptionTypeError` naming ``name`` — before any work is
+    done, not at the first call."""
+    if value is None:
+        return None
+    signature = f"{name}({', '.join(arguments)})"
+    if not callable(value):
+        raise OptionTypeError(
+            f"{where}: {name} must be a function {signature} or None; got {type(value).__name__}"
+        )
+    try:
+        inspect.signature(value).bind(*([None] * len(arguments)))
+    except TypeError:
+        raise OptionTypeError(
+            f"{where}: {name} must accept {len(arguments)} positional arguments, "
+            f"{signature}; {getattr(value, '__name__', type(value).__name__)} does not"
+        ) from None
+    except ValueError:  # no signature to inspect (some builtins): accept it
+        pass
+    return value

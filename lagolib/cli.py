@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from . import book, datasets, se2, topology
-from .errors import GraphError, LagolibError, OptionError, OptionTypeError
+from .errors import GraphError, LagolibError, LagolibWarning, OptionError, OptionTypeError
 from .gauss_newton import optimize
 from .graph import ERRORS, chi2, vertex_rows
 from .io import detect_format, read, read_poses, write
@@ -92,6 +92,21 @@ def _positive_int(text):
         raise argparse.ArgumentTypeError(f"expected a positive integer; got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer; got {value}")
+    return value
+
+
+#: --dpi bounds: below 10 dpi the labels' fonts cannot be rendered; above 2000 the 6-inch image
+#: passes Agg's limit of 2^16 pixels a side and needs gigabytes.
+_DPI_RANGE = (10, 2000)
+
+
+def _dpi(text):
+    value = _positive_int(text)
+    lo, hi = _DPI_RANGE
+    if not lo <= value <= hi:
+        raise argparse.ArgumentTypeError(
+            f"expected a resolution from {lo} to {hi} dpi; got {value}"
+        )
     return value
 
 
@@ -465,10 +480,23 @@ def _cmd_solve(args):
         )
     solved = graph.with_poses(poses)
     after = chi2(solved, error=args.error)
-    write(solved, output)
-    if image is not None:
+    if after > before:
+        warnings.warn(
+            f"--method {args.method} ended at chi2 {after:.10g}, above the {before:.10g} it "
+            "started from (SGD corrects constraints one at a time, not the weighted sum; from a "
+            "good start use gn or lm)",
+            LagolibWarning,
+            stacklevel=1,
+        )
+    if image is not None:  # drawn first: a failing --plot leaves no OUT behind either
         title = f"{Path(path).name}: {args.method}, chi2 {after:.6g}"
-        _save_figure(lambda ax: _draw_graph(ax, solved, title), image, args.dpi)
+        try:
+            _save_figure(lambda ax: _draw_graph(ax, solved, title), image, args.dpi)
+        except OSError as exc:
+            raise LagolibError(
+                f"--plot {image}: cannot write it ({exc.strerror or exc}); nothing was written"
+            ) from exc
+    write(solved, output)
     wrote = f"wrote {output}" + (f" and {image}" if image else "")
     print(
         f"{args.method}: chi2 {before:.10g} -> {after:.10g} ({args.error}), {iterations} "
@@ -499,6 +527,8 @@ def _draw_graph(ax, graph, title):
 def _poses_for(graph, name):
     """Poses for every vertex of ``graph`` from ``--poses`` (a pose list or a graph file)."""
     p = Path(name)
+    if p.is_dir():
+        raise LagolibError(f"--poses {name}: is a folder, not a poses file")
     if not p.is_file():
         raise LagolibError(f"--poses {name}: no such file")
     if p.suffix.lower() in _GRAPH_SUFFIXES:
@@ -508,10 +538,8 @@ def _poses_for(graph, name):
         ids, poses = read_poses(p)
     try:
         rows = vertex_rows(graph, ids, f"--poses {name}")
-    except GraphError as exc:
-        raise LagolibError(
-            f"{exc} (the graph has ids {graph.ids.min()}..{graph.ids.max()})"
-        ) from exc
+    except GraphError as exc:  # its message names the id and the graph's id range
+        raise LagolibError(str(exc)) from exc
     if rows.size != graph.n:
         missing = np.setdiff1d(graph.ids, ids)
         raise LagolibError(
@@ -712,7 +740,7 @@ def _parser():
         "-o", "--output", required=True, metavar="OUT", help="where to write (.g2o or .graph)"
     )
     p.add_argument("--plot", metavar="PNG", help="also draw the solved graph into this image")
-    p.add_argument("--dpi", type=_positive_int, default=_DPI, help="resolution of --plot")
+    p.add_argument("--dpi", type=_dpi, default=_DPI, help="resolution of --plot (10 to 2000)")
     p.add_argument("--progress", action="store_true", help="per-iteration lines on stderr")
     p.set_defaults(func=_cmd_solve)
 
@@ -749,7 +777,7 @@ def _parser():
     )
     p.add_argument("--sigma", type=_positive_float, default=3.0, help="ellipse size in sigmas")
     p.add_argument("--title", default=None, help="title (default: the file name)")
-    p.add_argument("--dpi", type=_positive_int, default=_DPI, help="resolution")
+    p.add_argument("--dpi", type=_dpi, default=_DPI, help="resolution (10 to 2000)")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="image (.png, .pdf, .svg)")
     p.set_defaults(func=_cmd_plot)
 

@@ -36,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import se2
-from .checks import check_bool, check_choice, check_int, check_real
+from .checks import check_bool, check_callback, check_choice, check_int, check_real
 from .errors import (
     ConvergenceError,
     GaugeError,
@@ -880,11 +880,7 @@ def optimize(
     lambda_initial = check_real(lambda_initial, "lambda_initial", where, minimum=0.0, strict=True)
     max_backtracks = check_int(max_backtracks, "max_backtracks", where, minimum=0)
     verbose = check_bool(verbose, "verbose", where)
-    if callback is not None and not callable(callback):
-        raise OptionTypeError(
-            f"{where}: callback must be a function callback(iteration, poses) or None; got "
-            f"{type(callback).__name__}"
-        )
+    callback = check_callback(callback, "callback", where)
     fixed, priors = resolve_gauge(graph, fixed, prior)
     x = as_graph_poses(graph, initial, "initial", "initial guess")
     system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)

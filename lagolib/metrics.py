@@ -142,7 +142,8 @@ def constraint_satisfaction(graph, poses=None):
     _check_graph(graph, where, need_edges=True)
     x = as_graph_poses(graph, poses, "poses")
     e = residuals(graph, x, error="t2v")  # t2v(Z_ij^-1 X_i^-1 X_j), angle wrapped
-    eta_c = float(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))  # Kümmerle et al. 2009: mean ||t(E)||²
+    with np.errstate(over="ignore"):  # poses ~1e200 apart: eta_c is inf, and says so
+        eta_c = float(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))  # Kümmerle et al. 2009: mean ||t(E)||²
     eta_a = float(np.mean(e[:, 2] ** 2))  # Kümmerle et al. 2009: mean wrap(theta(E))²
     return ConstraintSatisfaction(eta_c, eta_a)
 
@@ -549,8 +550,16 @@ def _pairs(pairs, n, where):
                 "longer trajectories"
             )
         return np.column_stack([np.arange(n - 1), np.arange(1, n)])
-    a = np.asarray(pairs)
+    try:
+        a = np.asarray(pairs)
+    except ValueError:  # ragged rows
+        a = np.asarray(pairs, dtype=object)
     if a.dtype.kind == "f" and a.size and np.all(np.isfinite(a)) and np.all(a == np.round(a)):
+        if np.any(np.abs(a) > 2.0**62):  # outside int64: out of range whatever n is
+            raise OptionError(
+                f"{where}: pairs holds {a.flat[np.argmax(np.abs(a))]:g}, not a row index of "
+                f"trajectories with {n} poses (valid 0..{n - 1})"
+            )
         a = a.astype(np.int64)
     if a.dtype.kind not in "iu" or a.ndim != 2 or a.shape[1] != 2 or a.shape[0] == 0:
         raise OptionError(

@@ -405,6 +405,15 @@ def spanning_tree(graph, tree="odometric", anchor=None):
                 f"the spanning tree was built for a graph with {tree.parent.size} vertices and "
                 f"{tree.in_tree.size} edges; this one has {graph.n} and {graph.m}"
             )
+        child = np.flatnonzero(tree.parent_edge >= 0)
+        e = graph.edges[tree.parent_edge[child]]
+        tail = np.where(tree.down[child], tree.parent[child], child)
+        head = np.where(tree.down[child], child, tree.parent[child])
+        if not (np.all(e[:, 0] == tail) and np.all(e[:, 1] == head)):
+            raise GraphError(
+                "the spanning tree was built for another graph with as many vertices and edges: "
+                "its edges do not join the vertices they join here; build it from this graph"
+            )
         return tree
     if not isinstance(tree, str):
         raise OptionTypeError(

@@ -462,6 +462,14 @@ def test_datasets_from_the_cache(capsys, monkeypatch, tmp_path):
         (("plot", "{good}", "--poses", "{tmp}/none.txt", "-o", "{tmp}/p.png"), 1, "no such file"),
         (("plot", "{good}", "--poses", "{few}", "-o", "{tmp}/p.png"), 1, "missing ids 3, 4"),
         (("plot", "{good}", "--sigma", "-1", "-o", "{tmp}/p.png"), 2, "positive number"),
+        (("plot", "{good}", "--dpi", "100000", "-o", "{tmp}/p.png"), 2, "from 10 to 2000 dpi"),
+        (("plot", "{good}", "--dpi", "1", "-o", "{tmp}/p.png"), 2, "from 10 to 2000 dpi"),
+        (("plot", "{good}", "--poses", "{tmp}", "-o", "{tmp}/p.png"), 1, "is a folder"),
+        (
+            ("solve", "{good}", "-m", "gn", "-o", "{tmp}/o.g2o", "--plot", "{tmp}/no/p.png"),
+            1,
+            "the folder {tmp}/no does not exist",
+        ),
         (("bogus",), 2, "invalid choice: 'bogus'"),
         ((), 2, "a command is required"),
     ],
@@ -485,6 +493,31 @@ def test_errors_print_one_line_and_set_the_exit_status(
     assert out == ""
     assert message.format(**names) in _one_error_line(err)
     assert not (tmp_path / "o.g2o").exists()
+
+
+def test_a_plot_that_cannot_be_written_leaves_no_output(aniso, capsys, tmp_path, monkeypatch):
+    path = aniso[0]
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr("matplotlib.figure.Figure.savefig", refuse)
+    rc, out, err = _call(
+        capsys, "solve", path, "-m", "gn", "-o", tmp_path / "o.g2o", "--plot", tmp_path / "p.png"
+    )
+    assert rc == 1 and out == ""
+    assert "--plot" in _one_error_line(err) and "nothing was written" in err
+    assert not (tmp_path / "o.g2o").exists()
+
+
+def test_sgd_from_an_optimum_warns_that_it_went_up(aniso, capsys, tmp_path):
+    path = aniso[0]
+    assert _call(capsys, "solve", path, "-m", "lago+gn", "-o", tmp_path / "opt.g2o")[0] == 0
+    rc, out, err = _call(
+        capsys, "solve", tmp_path / "opt.g2o", "-m", "sgd", "-n", "3", "-o", tmp_path / "s.g2o"
+    )
+    assert rc == 0
+    assert "lagolib: warning: --method sgd ended at chi2" in err and "above" in err
 
 
 def test_debug_shows_the_traceback(capsys, tmp_path):

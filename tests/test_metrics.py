@@ -345,6 +345,12 @@ _T = np.zeros((4, 3))
         (lambda: metrics.relative_pose_error(_T, _T, pairs=[0, 1]), OptionError, "pairs must"),
         (lambda: metrics.relative_pose_error(_T, _T, pairs=[[0.5, 1]]), OptionError, "pairs"),
         (lambda: metrics.relative_pose_error(_T[:1], _T[:1]), GraphError, "at least 2 poses"),
+        (
+            lambda: metrics.relative_pose_error(_T, _T, pairs=[[0, 1], [2]]),
+            OptionError,
+            "pairs must",
+        ),
+        (lambda: metrics.relative_pose_error(_T, _T, pairs=[[1e20, 1]]), OptionError, "1e\\+20"),
     ],
 )
 def test_bad_input_names_the_argument(call, error, match):

@@ -174,3 +174,61 @@ def test_intel_table_ii_in_toros_range(scenario):
     assert abs(eta_a / toro_a - 1) < 0.1
     lago = constraint_satisfaction(g, lagolib.lago_solve(g).poses)
     assert eta_c > lago.eta_c  # LAGO satisfies the translations better, as in the paper
+
+
+def test_a_turned_anchor_is_respected(world):
+    """The anchor's heading enters every absolute orientation (a bug once left it out)."""
+    graph, truth = world
+    turn = np.array([0.0, 0.0, 1.0])
+    turned = lagolib.PoseGraph(
+        se2.compose(np.broadcast_to(turn, graph.poses.shape), graph.poses),
+        graph.edges,
+        graph.measurements,
+        graph.information,
+        ids=graph.ids,
+    )
+    fast = sgd(turned, iterations=6).poses
+    np.testing.assert_allclose(fast, sgd_reference(turned, iterations=6), atol=1e-10)
+    # with isotropic information the preconditioner does not see the world frame: turning the
+    # world turns the answer (with anisotropic information Olson's diagonal M depends on it)
+    sq = datasets.example("square_loop").graph
+    sq_turned = lagolib.PoseGraph(
+        se2.compose(np.broadcast_to(turn, sq.poses.shape), sq.poses),
+        sq.edges,
+        sq.measurements,
+        sq.information,
+        ids=sq.ids,
+    )
+    expect = se2.compose(np.broadcast_to(turn, sq.poses.shape), sgd(sq, iterations=6).poses)
+    got = sgd(sq_turned, iterations=6).poses
+    np.testing.assert_allclose(got[:, :2], expect[:, :2], atol=1e-9)
+    assert np.abs(se2.wrap_angle(got[:, 2] - expect[:, 2])).max() < 1e-9
+
+
+def test_a_tree_of_another_graph_is_refused():
+    a = simulate.manhattan_world(n_poses=40, rng=1).graph
+    b = lagolib.PoseGraph(
+        a.poses, a.edges[:, ::-1].copy(), a.measurements, a.information, ids=a.ids
+    )
+    with pytest.raises(GraphError, match="another graph"):
+        sgd(b, tree=tree_parameterization(a), iterations=1)
+    with pytest.raises(GraphError, match="another graph"):
+        sgd(b, tree=lagolib.topology.spanning_tree(a, "bfs"), iterations=1)
+    with pytest.raises(OptionError, match=r"anchor=3 differs from the root .*vertex id 0"):
+        sgd(a, tree=lagolib.topology.spanning_tree(a, "bfs"), anchor=3, iterations=1)
+
+
+def test_callback_signature_is_checked_before_any_work():
+    ex = datasets.example("square_loop")
+    with pytest.raises(OptionTypeError, match=r"callback must accept 2 positional arguments"):
+        sgd(ex.graph, iterations=1, callback=lambda: None)
+    with pytest.raises(OptionTypeError, match=r"callback must accept 2 positional arguments"):
+        lagolib.optimize(ex.graph, callback=lambda t: None)
+
+
+def test_a_graph_without_edges_is_left_alone():
+    g = lagolib.PoseGraph(
+        np.array([[1.0, 2.0, 0.5]]), np.zeros((0, 2), int), np.zeros((0, 3)), np.zeros((0, 3, 3))
+    )
+    res = sgd(g, iterations=3)
+    assert res.chi2 == 0.0 and np.array_equal(res.poses, g.poses)
