@@ -176,6 +176,32 @@ def test_script_solve_writes_what_lagolib_and_gtsam_read_back(aniso, tmp_path):
     assert _png_size(png) == (240, 240)  # 6 inches at 40 dpi
 
 
+def test_solve_writes_what_g2o_reads_back(aniso, capsys, tmp_path):
+    """g2o itself (its Python bindings, g2opy) loads the solved file: the same vertices, edges,
+    measurements, information, and the same χ² — g2o's χ² is the notes' t2v error."""
+    g2o = pytest.importorskip("g2opy", reason="g2o's Python bindings (g2opy) are not installed")
+    path, g, _, _, _ = aniso
+    out = tmp_path / "solved.g2o"
+    assert _call(capsys, "solve", path, "-m", "lago+gn", "-o", out)[0] == 0
+    back = lagolib.read(out)
+    opt = g2o.SparseOptimizer()
+    assert opt.load(str(out))
+    assert len(opt.vertices()) == g.n and len(opt.edges()) == g.m
+    for vid, p in zip(back.ids.tolist(), back.poses):
+        np.testing.assert_allclose(opt.vertex(vid).estimate().to_vector(), p, rtol=0, atol=1e-12)
+    by_pair = {(int(e.vertices()[0].id()), int(e.vertices()[1].id())): e for e in opt.edges()}
+    for (i, j), z, info in zip(back.ids[back.edges].tolist(), back.measurements, back.information):
+        e = by_pair[(i, j)]
+        np.testing.assert_allclose(e.measurement().to_vector(), z, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(e.information(), info, rtol=1e-12)
+    opt.set_algorithm(
+        g2o.OptimizationAlgorithmGaussNewton(g2o.BlockSolverSE2(g2o.LinearSolverEigenSE2()))
+    )
+    opt.initialize_optimization()
+    opt.compute_active_errors()
+    assert opt.chi2() == pytest.approx(lagolib.chi2(back), rel=1e-9)
+
+
 @script
 def test_script_plot_draws_a_png_of_the_expected_size(aniso, tmp_path):
     path, g, truth, _, _ = aniso
