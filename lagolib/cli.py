@@ -44,6 +44,7 @@ from .gauss_newton import optimize
 from .graph import ERRORS, chi2, vertex_rows
 from .io import detect_format, read, read_poses, write
 from .lago import lago, regularize
+from .sgd import sgd
 
 __all__ = ["main", "COMMANDS", "METHODS"]
 
@@ -437,14 +438,13 @@ def _run_optimize(graph, initial, method, args, sink, t0):
 
 
 def _run_sgd(graph, args, sink, t0, chi_start):
-    from . import sgd as sgd_module  # written alongside this command (issue 13)
-
     kw = {} if args.iterations is None else {"iterations": args.iterations}
     if args.tree is not None:
         kw["tree"] = args.tree
-    if sink is not None:
+    if sink is not None:  # the progress line computes χ² with --error: sgd need not as well
         kw["callback"] = _sgd_progress(graph, args.error, sink, t0, chi_start)
-    res = sgd_module.sgd(graph, **kw)
+        kw["history"] = False
+    res = sgd(graph, **kw)
     return np.asarray(res.poses, dtype=float), int(res.iterations)
 
 

@@ -391,6 +391,31 @@ class PoseGraph:
         new._check_poses()
         return new
 
+    def with_information(self, information):
+        """A new graph with the same poses, edges and measurements and other information.
+
+        Parameters
+        ----------
+        information : array_like, shape (3, 3) or (m, 3, 3)
+            One matrix for every edge, or one per edge; g2o frame, checked as in the
+            constructor (symmetric positive definite: a GraphError names the edge).
+
+        Returns
+        -------
+        PoseGraph
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> g = PoseGraph(np.zeros((2, 3)), [[0, 1]], [[1.0, 0.0, 0.0]], [np.eye(3)])
+        >>> np.diag(g.with_information(np.diag([1.0, 2.0, 3.0])).information[0]).tolist()
+        [1.0, 2.0, 3.0]
+        """
+        info = _numeric(information, "with_information: information", float)
+        if info.shape == (3, 3):
+            info = np.broadcast_to(info, (self.m, 3, 3))
+        return PoseGraph(self.poses, self.edges, self.measurements, info, ids=self.ids)
+
     def odometric_chain(self):
         """For each consecutive pair of vertices in id order, the edge that measures it.
 
@@ -653,30 +678,34 @@ def check_poses(poses, ids, what="pose"):
     Parameters
     ----------
     poses : ndarray, shape (n, 3)
-    ids : ndarray of int, shape (n,)
-        Vertex ids, for the message.
+    ids : ndarray of int, shape (n,), or None
+        Vertex ids, for the message; None for a trajectory without ids (the message names the
+        row).
     what : str
         How the message names the poses (e.g. ``"initial pose"``).
 
     Raises
     ------
     GraphError
-        ``{what} of vertex id ... (index ...)`` is not finite, or has ``|theta| >``
-        :data:`lagolib.se2.MAX_ANGLE`; ``GraphError.vertex`` is the row index.
+        ``{what} of vertex id ... (index ...)`` (or ``{what} row ...``) is not finite, or has
+        ``|theta| >`` :data:`lagolib.se2.MAX_ANGLE`; ``GraphError.vertex`` is the row index.
     """
+
+    def name(k):
+        return f"{what} row {k}" if ids is None else f"{what} of vertex id {ids[k]} (index {k})"
+
     bad = np.flatnonzero(~np.all(np.isfinite(poses), axis=1))
     if bad.size:
         k = int(bad[0])
         raise GraphError(
-            f"{what} of vertex id {ids[k]} (index {k}) is not finite: {poses[k].tolist()}; "
-            "give every vertex finite (x, y, theta)",
+            f"{name(k)} is not finite: {poses[k].tolist()}; give every vertex finite (x, y, theta)",
             vertex=k,
         )
     big = np.flatnonzero(np.abs(poses[:, 2]) > se2.MAX_ANGLE)
     if big.size:
         k = int(big[0])
         raise GraphError(
-            f"{what} of vertex id {ids[k]} (index {k}) has the angle {float(poses[k, 2])!r} rad; "
+            f"{name(k)} has the angle {float(poses[k, 2])!r} rad; "
             f"|theta| must be <= {_ANGLE_BOUND} (float64 cannot reduce larger angles "
             "consistently, see lagolib.se2): wrap it to (-pi, pi]",
             vertex=k,

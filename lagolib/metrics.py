@@ -44,7 +44,7 @@ import numpy as np
 from . import se2
 from .checks import check_bool
 from .errors import GraphError, GraphTypeError, OptionError, OptionTypeError
-from .graph import PoseGraph, _numeric, as_graph_poses, residuals
+from .graph import PoseGraph, _numeric, as_graph_poses, check_poses, residuals
 
 __all__ = [
     "ConstraintSatisfaction",
@@ -235,7 +235,7 @@ def sesync_weights(graph):
     info = np.zeros((graph.m, 3, 3))
     info[:, 0, 0] = info[:, 1, 1] = tau
     info[:, 2, 2] = 2.0 * kappa  # the surrogate's rotation weight: 4 kappa (1 - cos r) ~ 2 kappa r²
-    return PoseGraph(graph.poses, graph.edges, graph.measurements, info, graph.ids)
+    return graph.with_information(info)
 
 
 def sesync_objective(graph, poses=None, *, per_edge=False):
@@ -397,22 +397,7 @@ def _trajectory(value, name, where):
             f"{where}: {name} must have shape (n, 3) with n >= 1, one row (x, y, theta) per "
             f"pose; got shape {a.shape}"
         )
-    bad = np.flatnonzero(~np.all(np.isfinite(a), axis=1))
-    if bad.size:
-        k = int(bad[0])
-        raise GraphError(
-            f"{where}: {name} row {k} is not finite: {a[k].tolist()}; give every pose finite "
-            "(x, y, theta)",
-            vertex=k,
-        )
-    big = np.flatnonzero(np.abs(a[:, 2]) > se2.MAX_ANGLE)
-    if big.size:
-        k = int(big[0])
-        raise GraphError(
-            f"{where}: {name} row {k} has the angle {float(a[k, 2])!r} rad; |theta| must be "
-            "<= 1e9 (see lagolib.se2): wrap it to (-pi, pi]",
-            vertex=k,
-        )
+    check_poses(a, None, f"{where}: {name}")
     return a
 
 

@@ -425,9 +425,7 @@ def _setup(graph, initial, iterations, tree, anchor, callback, verbose, where):
             )
         _check_anchor(graph, tree.tree, anchor, where)
         par = tree
-    else:
-        if isinstance(tree, SpanningTree):
-            _check_anchor(graph, spanning_tree(graph, tree), anchor, where)
+    else:  # checks a given SpanningTree and its anchor
         par = tree_parameterization(graph, tree, anchor)
     return iterations, verbose, p, par
 

@@ -28,17 +28,6 @@ def _run(capsys, check, *answer):
     return ok, out
 
 
-# --------------------------------------------------------------------------- helpers
-def test_with_information_replaces_every_matrix():
-    g = lagolib.datasets.example("grid100").graph
-    h = ch08.with_information(g, np.diag([1.0, 2.0, 3.0]))
-    assert h.m == g.m and np.array_equal(h.edges, g.edges)
-    np.testing.assert_array_equal(
-        h.information, np.broadcast_to(np.diag([1.0, 2.0, 3.0]), (g.m, 3, 3))
-    )
-    np.testing.assert_array_equal(h.measurements, g.measurements)
-
-
 # --------------------------------------------------------------------------- 8.1
 def eta_ok(graph, poses):
     x = np.asarray(poses, dtype=float)
@@ -171,7 +160,7 @@ def test_eta_in_place_modification_does_not_corrupt_the_reference(capsys):
 @pytest.fixture(scope="module")
 def identity_scenario():
     g = lagolib.datasets.example("square_loop").graph
-    gi = ch08.with_information(g, np.eye(3))
+    gi = g.with_information(np.eye(3))
     run = sgd(gi, g.odometry_guess(), iterations=100)
     return gi, run.poses
 

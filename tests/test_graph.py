@@ -305,3 +305,20 @@ def test_complex_and_text_arrays_are_type_errors():
         assert isinstance(exc.value, TypeError)
     with pytest.raises(GraphTypeError, match=r"poses must be a numeric array of real numbers"):
         lagolib.chi2(small(), np.zeros((4, 3), dtype=complex))
+
+
+def test_with_information_replaces_every_matrix_and_keeps_the_rest():
+    g = lagolib.datasets.example("grid100").graph
+    h = g.with_information(np.diag([1.0, 2.0, 3.0]))
+    assert h.m == g.m and np.array_equal(h.edges, g.edges) and np.array_equal(h.ids, g.ids)
+    np.testing.assert_array_equal(
+        h.information, np.broadcast_to(np.diag([1.0, 2.0, 3.0]), (g.m, 3, 3))
+    )
+    np.testing.assert_array_equal(h.measurements, g.measurements)
+    np.testing.assert_array_equal(h.poses, g.poses)
+    per_edge = np.tile(np.diag([5.0, 5.0, 7.0]), (g.m, 1, 1))
+    np.testing.assert_array_equal(g.with_information(per_edge).information, per_edge)
+    with pytest.raises(GraphError, match="information"):
+        g.with_information(np.diag([1.0, -2.0, 3.0]))
+    with pytest.raises(GraphError, match="information"):
+        g.with_information(np.eye(2))

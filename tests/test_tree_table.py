@@ -64,10 +64,13 @@ def test_the_stored_table_supports_the_default():
         assert float(table[(g, "min_uncertainty")]["gn_chi2"]) <= 1.001 * float(
             table[(g, "bfs")]["gn_chi2"]
         ), g
-    assert max(
-        float(table[(g, "bfs")]["gn_chi2"]) / float(table[(g, "min_uncertainty")]["gn_chi2"])
-        for g in prop
-    ) > 2
+    assert (
+        max(
+            float(table[(g, "bfs")]["gn_chi2"]) / float(table[(g, "min_uncertainty")]["gn_chi2"])
+            for g in prop
+        )
+        > 2
+    )
     # MIT: the odometric tree's LAGO sends GN into a local minimum, min_uncertainty does not
     assert float(table[("mit", "odometric")]["gn_chi2"]) > 700
     assert float(table[("mit", "min_uncertainty")]["gn_chi2"]) < 42

@@ -25,7 +25,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from lagolib import PoseGraph, lago_solve, optimize, se2, simulate
+from lagolib import lago_solve, optimize, se2, simulate
 from lagolib.exercises._feedback import (
     NOT_ATTEMPTED,
     call_student,
@@ -41,7 +41,6 @@ __all__ = [
     "WEIGHTS",
     "SMALLEST_CHOICES",
     "TREND_CHOICES",
-    "with_information",
     "angle_weight_sweep",
     "check_eta",
     "check_smallest_sum",
@@ -54,25 +53,6 @@ WEIGHTS = (0.01, 0.1, 1.0, 10.0, 100.0)
 SMALLEST_CHOICES = ("SGD", "LAGO", "Gauss-Newton")
 #: The answers exercise 8.3 accepts for a trend.
 TREND_CHOICES = ("increases", "decreases", "neither")
-
-
-def with_information(graph, information):
-    """``graph`` with every edge's information replaced (poses, ids, edges, measurements kept).
-
-    Parameters
-    ----------
-    graph : PoseGraph
-    information : array_like, shape (3, 3) or (m, 3, 3)
-        One matrix for every edge, or one per edge (g2o frame).
-
-    Returns
-    -------
-    PoseGraph
-    """
-    info = np.asarray(information, dtype=float)
-    if info.shape == (3, 3):
-        info = np.broadcast_to(info, (graph.m, 3, 3)).copy()
-    return PoseGraph(graph.poses, graph.edges, graph.measurements, info, ids=graph.ids)
 
 
 # --------------------------------------------------------------------------- exercise 8.1
@@ -93,7 +73,7 @@ def _eta_cases():
     info = np.zeros((g.m, 3, 3))
     info[:, :2, :2] = np.linalg.inv(cov)
     info[:, 2, 2] = 1.0 / 0.03**2
-    g = with_information(g, info)
+    g = g.with_information(info)
     moved = sim.truth + np.column_stack(
         [0.05 * rng.standard_normal((g.n, 2)), 0.08 * rng.standard_normal(g.n)]
     )
@@ -306,7 +286,7 @@ def angle_weight_sweep(graph, weights=WEIGHTS):
     """``eta_c`` and ``eta_a`` at the Gauss–Newton optimum for information ``diag(1, 1, w)``.
 
     For each ``w`` in ``weights`` every edge of ``graph`` gets the information ``diag(1, 1, w)``
-    (:func:`with_information`); LAGO initializes :func:`lagolib.optimize`, and the optimum's
+    (:meth:`lagolib.PoseGraph.with_information`); LAGO initializes :func:`lagolib.optimize`, and the optimum's
     :func:`~lagolib.metrics.constraint_satisfaction` is returned.  With this information
     ``χ² = m (eta_c + w eta_a)``: the optimum minimizes a weighted sum of the two metrics.  The
     last result is cached (the chapter's cell and :func:`check_weight_sweep` share it).
@@ -328,7 +308,7 @@ def angle_weight_sweep(graph, weights=WEIGHTS):
         return hit[2].copy()
     rows = []
     for w in key[1]:
-        g = with_information(graph, np.diag([1.0, 1.0, w]))
+        g = graph.with_information(np.diag([1.0, 1.0, w]))
         gn = optimize(g, lago_solve(g, margin_warning=0).poses)
         rows.append(tuple(constraint_satisfaction(g, gn.poses)))
     out = np.array(rows)
