@@ -3,8 +3,8 @@
 Layers (each imports only from the ones before it)::
 
     errors -> se2 -> checks -> graph -> io, simulate, metrics -> datasets -> topology -> linalg
-    -> estimation -> gauss_newton, lago, sgd -> closed_form -> plotting -> uncertainty -> book
-    -> cli;   symbolic (sympy only)
+    -> estimation -> gauss_newton, lago, sgd -> closed_form -> certify -> plotting -> uncertainty
+    -> book -> cli;   symbolic (sympy only)
 
 Public API
 ----------
@@ -35,6 +35,11 @@ lago_solve, LagoResult, lago
 closed_form
     Lodi Rizzini's closed form: poses as (x, y, cos, sin), position and angular equations, the
     orthogonality condition solved by Newton's method.
+certify
+    Is it the global optimum?  The chordal problem in complex form (data matrix ``M``), a local
+    Newton solver, the dual certificate ``lambda_min(S)`` with a lower bound when it fails,
+    escape up the Riemannian staircase, and ``certify.solve(graph)``: LAGO → Gauss–Newton →
+    chordal polish → certificate (→ escape).
 metrics
     Carlone's Table II metrics ``constraint_satisfaction`` (η_c, η_a); SE-Sync's objective and
     weights (``sesync_objective``, ``sesync_weights``); ``align``, ``absolute_trajectory_error``
@@ -55,6 +60,7 @@ plotting
 """
 
 from . import (
+    certify,
     closed_form,
     datasets,
     estimation,
@@ -124,6 +130,7 @@ __all__ = [
     "sgd",
     "LagoResult",
     "lago_solve",
+    "certify",
     "closed_form",
     "uncertainty",
     "symbolic",

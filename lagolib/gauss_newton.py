@@ -455,6 +455,10 @@ class LinearSystem:
         self._rows_b_p = rows3.ravel()
         self._keep_b_p = self._rows_b_p >= 0
 
+    def _edge_weights(self):
+        """The weight of every edge's residual: its information matrix, shape (m, 3, 3)."""
+        return self.graph.information
+
     def _terms(self, poses):
         g = self.graph
         e, A, B = edge_jacobians(
@@ -490,9 +494,9 @@ class LinearSystem:
         chi2 : float
             ``sum_ij e_ij^T Omega_ij e_ij`` plus the priors' terms.
         """
-        g = self.graph
         e, J, ep, Jp = self._terms(poses)
-        OJ = g.information @ J  # (m, 3, 6)
+        W = self._edge_weights()  # Omega_ij, (m, k, k)
+        OJ = W @ J  # (m, k, 6)
         M = np.swapaxes(J, 1, 2) @ OJ  # J^T Omega J, (m, 6, 6)
         M = 0.5 * (M + np.swapaxes(M, 1, 2))
         OJp = self._prior_info @ Jp
@@ -506,8 +510,7 @@ class LinearSystem:
         b = np.bincount(self._rows_b_e[self._keep_b_e], ge[self._keep_b_e], minlength=self.N)
         b += np.bincount(self._rows_b_p[self._keep_b_p], gp[self._keep_b_p], minlength=self.N)
         objective = float(
-            np.einsum("ka,kab,kb->", e, g.information, e)
-            + np.einsum("ka,kab,kb->", ep, self._prior_info, ep)
+            np.einsum("ka,kab,kb->", e, W, e) + np.einsum("ka,kab,kb->", ep, self._prior_info, ep)
         )
         return H, b, objective
 
@@ -892,6 +895,35 @@ def optimize(
     trace = _Trace(method, verbose)
     t_setup = time.perf_counter() - t_start
 
+    x, chi, stop = _minimize(
+        system, x, control, solve, trace, max_iterations, tol, step_tol, callback
+    )
+    converged, reason = stop or (False, f"reached max_iterations={max_iterations}")
+    trace.timings["setup"] = t_setup
+    trace.timings["total"] = time.perf_counter() - t_start
+    return OptimizeResult(
+        poses=x,
+        chi2=chi,
+        chi2_history=trace.history,
+        step_norms=trace.steps,
+        iterations=trace.iterations,
+        converged=converged,
+        reason=reason,
+        method=method,
+        error=error,
+        graph=graph.with_poses(x),
+        lambdas=trace.lambdas,
+        step_fractions=trace.fractions,
+        linear_iterations=solve.iterations,
+        timings=trace.timings,
+    )
+
+
+def _minimize(system, x, control, solve, trace, max_iterations, tol, step_tol, callback):
+    """The notes' loop (lecture notes, "Algorithm") for any system with ``assemble``,
+    ``objective`` and ``update`` — :func:`optimize`'s χ² and :mod:`lagolib.certify`'s chordal
+    cost.  Returns ``(x, objective, stop)``, ``stop`` = ``(converged, reason)`` or None when
+    ``max_iterations`` ran out."""
     with np.errstate(over="ignore", invalid="ignore"):  # reported by _check_finite_system
         H, b, chi = trace.timed("assembly", system.assemble, x)  # build H and b
     _check_finite_system(system, x, H, b, chi)
@@ -928,25 +960,7 @@ def optimize(
         stop = _stop_after_step(decrease, trace.steps[-1], tol, step_tol)  # converged?
         if stop is None and trace.iterations < max_iterations:
             H, b, _ = trace.timed("assembly", system.assemble, x)  # build H and b
-    converged, reason = stop or (False, f"reached max_iterations={max_iterations}")
-    trace.timings["setup"] = t_setup
-    trace.timings["total"] = time.perf_counter() - t_start
-    return OptimizeResult(
-        poses=x,
-        chi2=chi,
-        chi2_history=trace.history,
-        step_norms=trace.steps,
-        iterations=trace.iterations,
-        converged=converged,
-        reason=reason,
-        method=method,
-        error=error,
-        graph=graph.with_poses(x),
-        lambdas=trace.lambdas,
-        step_fractions=trace.fractions,
-        linear_iterations=solve.iterations,
-        timings=trace.timings,
-    )
+    return x, chi, stop
 
 
 def _check_finite_system(system, poses, H, b, chi):
@@ -957,7 +971,7 @@ def _check_finite_system(system, poses, H, b, chi):
     e, J, ep, Jp = system._terms(poses)
     with np.errstate(all="ignore"):
         parts = [
-            (e, J, g.information, [g._edge_name(k) for k in range(g.m)]),
+            (e, J, system._edge_weights(), [g._edge_name(k) for k in range(g.m)]),
             (
                 ep,
                 Jp,
@@ -977,7 +991,7 @@ def _check_finite_system(system, poses, H, b, chi):
                     f"largest information entry {np.max(np.abs(info[k])):.3g}; {bad.size} such "
                     "term(s)); give an initial guess closer to the measurements or rescale the "
                     "information",
-                    edge=k if info is g.information else None,
+                    edge=k if info is not system._prior_info else None,
                 )
     raise GraphError(
         f"the χ² sum ({chi!r}) or H overflows float64 although every edge's term is finite; "

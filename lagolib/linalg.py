@@ -149,15 +149,20 @@ class SparseCholesky:
 
         U = sp.triu(H, format="csc")
         try:
-            if self._solver is None or U.nnz != self._nnz:
-                self._solver = qdldl.Solver(U, upper=True)
-            else:
+            same = (
+                self._solver is not None
+                and np.array_equal(U.indptr, self._pattern[0])
+                and np.array_equal(U.indices, self._pattern[1])
+            )
+            if same:  # the symbolic analysis holds only for the same pattern
                 self._solver.update(U, upper=True)
+            else:
+                self._solver = qdldl.Solver(U, upper=True)
         except (RuntimeError, ValueError):  # ValueError: qdldl's "Matrix A is empty" (H = 0)
             self._solver = None
             what = "the matrix is zero" if U.nnz == 0 else "the matrix is singular or indefinite"
             raise NotPositiveDefiniteError(f"sparse Cholesky (qdldl) failed: {what}") from None
-        self._nnz = U.nnz
+        self._pattern = (U.indptr.copy(), U.indices.copy())
         _, d, perm = self._solver.factors()
         bad = np.flatnonzero(~(d > 0))
         if bad.size:

@@ -20,6 +20,7 @@ LAYERS = [
     ["estimation"],
     ["gauss_newton", "lago", "sgd"],
     ["closed_form"],
+    ["certify"],
     ["plotting"],
     ["uncertainty"],
     ["book"],

@@ -1,0 +1,1269 @@
+r"""Is it the global optimum?  The planar problem in complex form, a dual certificate, and escape.
+
+Gauss–Newton (:func:`lagolib.optimize`) and LAGO find *an* answer; neither says whether it is the
+best one.  On MIT, Gauss–Newton from odometry stops at χ² 770.66 where 41.16 is reachable, and its
+last step is as small as at the true optimum.  This module answers the question with the duality
+argument of Carlone, Rosen, Calafiore, Leonard and Dellaert (TRO 2016) and SE-Sync (Rosen,
+Carlone, Bandeira and Leonard, IJRR 2019), written out for the plane:
+
+1. **The chordal problem in complex form.**  A pose is ``t_i = x_i + i y_i`` and
+   ``z_i = exp(i theta_i)`` (``|z_i| = 1``); a measurement is ``t~_ij`` and ``R~_ij =
+   exp(i delta_ij)`` (frame ``i``).  The cost
+
+   .. math:: f(x) = \sum_{ij} \kappa_{ij} |z_j - z_i \tilde R_{ij}|^2
+                    + \tau_{ij} |t_j - t_i - z_i \tilde t_{ij}|^2 = x^H M x,
+             \qquad x = [t; z] \in \mathbb{C}^{2n}
+
+   is a Hermitian quadratic form (:func:`data_matrix`); all the non-convexity is in
+   ``|z_i| = 1``.  SE-Sync's objective (its Problem 1) is the same with ``||R_j - R_i
+   R~||_F^2 = 2 |z_j - z_i R~|^2``; :func:`chordal_problem` takes ``kappa = Omega_33`` and ``tau =
+   2 / tr(Omega_tt^-1)`` from the g2o information, so ``f`` equals χ² to second order for
+   isotropic information, and SE-Sync's objective is ``f`` of
+   ``graph.with_information(metrics.sesync_weights(graph).information)``.
+2. **A local solver** for ``f`` (:func:`refine`): Gauss–Newton on ``(x, y, theta)`` with the
+   chordal residuals — the loop of :func:`lagolib.optimize`.
+3. **The certificate** (:func:`certify`): at a stationary point the Lagrange multipliers of
+   ``|z_i|^2 = 1`` are ``lambda_i = Re(conj(z_i) (M x)_{n+i})`` and
+   ``S = M - blkdiag(0, diag(lambda))`` satisfies ``S x = 0``.  If ``S`` is positive
+   semidefinite, ``x`` is a global minimum: for every feasible ``y``,
+   ``y^H M y = y^H S y + sum(lambda) >= sum(lambda) = f(x)``.  Translations are free, so they are
+   eliminated (``S~``, the Schur complement on the rotations); for every feasible ``y``,
+   ``f(y) >= sum(lambda) + n min(lambda_min(S~), 0)`` — a lower bound on the global optimum
+   ``f*`` even when the certificate fails.
+4. **Escape** (:func:`escape`): along the eigenvector of a negative eigenvalue of ``S~`` the cost
+   decreases to second order (SE-Sync's saddle escape, at rank one); the local solver then
+   continues from there.
+5. :func:`solve` — the pipeline to call: LAGO → Gauss–Newton → chordal polish → certificate
+   (→ escape → polish → certificate, until certified or out of budget).
+
+No dense ``n x n`` matrix is formed: ``M``, ``S`` and the factorizations are sparse, and
+``lambda_min`` comes from shift-and-invert Lanczos on a sparse ``L D L^T`` factor.
+
+References
+----------
+.. [1] L. Carlone, D. M. Rosen, G. Calafiore, J. J. Leonard, F. Dellaert, "Lagrangian duality in
+   3D SLAM: verification techniques and optimal solutions" (IROS 2015) and "Planar pose graph
+   optimization: duality, optimal solutions, and verification", IEEE Trans. Robotics 32(3), 2016.
+.. [2] D. M. Rosen, L. Carlone, A. S. Bandeira, J. J. Leonard, "SE-Sync: a certifiably correct
+   algorithm for synchronization over the special Euclidean group", IJRR 38(2-3), 2019.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .checks import check_bool, check_choice, check_int, check_real
+from .errors import NotPositiveDefiniteError, OptionError, OptionTypeError
+from .gauss_newton import (
+    LinearSystem,
+    OptimizeResult,
+    _GaussNewtonSteps,
+    _LevenbergMarquardtDamping,
+    _LinearSolver,
+    _minimize,
+    _Trace,
+    optimize,
+)
+from .graph import PoseGraph, as_graph_poses, chi2
+from .lago import lago
+from .linalg import SparseCholesky
+from .metrics import sesync_parameters
+
+__all__ = [
+    "ChordalProblem",
+    "chordal_problem",
+    "to_complex",
+    "from_complex",
+    "data_matrix",
+    "chordal_cost",
+    "refine",
+    "optimal_translations",
+    "multipliers",
+    "certificate_matrix",
+    "reduced_certificate_matrix",
+    "Certificate",
+    "certify",
+    "escape",
+    "SolveResult",
+    "solve",
+    "ETA",
+]
+
+#: Relative tolerance of the certificate: ``lambda_min(S~) >= -ETA * mean(lambda)`` counts as
+#: positive semidefinite (see :func:`certify`).
+ETA = 1e-7
+
+
+# ----------------------------------------------------------------------------- the problem
+@dataclass(frozen=True, eq=False)
+class ChordalProblem:
+    """The chordal cost's data, per edge, in complex form.
+
+    Attributes
+    ----------
+    graph : PoseGraph
+    i, j : ndarray of int, shape (m,)
+        Rows (into ``graph.poses``) of each edge's two poses.
+    t_meas : ndarray of complex, shape (m,)
+        ``t~_ij = dx + i dy``, the measured translation in the frame of pose ``i``.
+    R_meas : ndarray of complex, shape (m,)
+        ``R~_ij = exp(i dtheta)``.
+    kappa, tau : ndarray, shape (m,)
+        Rotation and translation weights (> 0).
+    """
+
+    graph: PoseGraph
+    i: np.ndarray
+    j: np.ndarray
+    t_meas: np.ndarray
+    R_meas: np.ndarray
+    kappa: np.ndarray
+    tau: np.ndarray
+
+    @property
+    def n(self):
+        return self.graph.n
+
+    @property
+    def m(self):
+        return self.graph.m
+
+    @cached_property
+    def M(self):
+        """The data matrix, :func:`data_matrix` (computed once)."""
+        return data_matrix(self)
+
+    @cached_property
+    def _M_real(self):
+        """``[[Re M, -Im M], [Im M, Re M]]``, shape (4 n, 4 n): ``y^H M y`` on ``[Re y; Im y]``."""
+        M = self.M
+        return sp.bmat([[M.real, -M.imag], [M.imag, M.real]], format="csr")
+
+    @cached_property
+    def _real_form(self):
+        """The upper triangle of ``[[Re M', -Im M'], [Im M', Re M']]`` (``M'``: ``M`` without the
+        first translation), the rows of ``Re z, Im z`` and the data slots of their diagonal."""
+        n = self.n
+        C = self.M[1:, 1:].tocoo()
+        N = 2 * n - 1
+        r, c, v = C.row, C.col, C.data
+        rows = np.concatenate([r, r + N, r, r + N])
+        cols = np.concatenate([c, c + N, c + N, c])
+        vals = np.concatenate([v.real, v.real, -v.imag, v.imag])
+        keep = (rows <= cols) & (vals != 0.0)
+        zrows = np.stack([n - 1 + np.arange(n), N + n - 1 + np.arange(n)])
+        diag = zrows.ravel()
+        # the rotation diagonal must be stored even if zero: add explicit entries there
+        rows = np.concatenate([rows[keep], diag])
+        cols = np.concatenate([cols[keep], diag])
+        vals = np.concatenate([vals[keep], np.zeros(diag.size)])
+        U = sp.csc_matrix((vals, (rows, cols)), shape=(2 * N, 2 * N))
+        U.sum_duplicates()
+        U.sort_indices()
+        col = np.repeat(np.arange(2 * N), np.diff(U.indptr))
+        on_diag = np.flatnonzero(U.indices == col)  # data slots of the diagonal, one per column
+        slot_of = np.empty(2 * N, dtype=np.int64)
+        slot_of[col[on_diag]] = on_diag
+        return U, zrows, slot_of[diag]
+
+    @cached_property
+    def _translation_factor(self):
+        """Cholesky factor of ``M_tt`` without the anchor's row: ``(factor, keep)``."""
+        n = self.n
+        keep = np.arange(1, n)
+        Mtt = self.M[:n, :n].real.tocsc()[keep][:, keep]
+        return SparseCholesky(sp.csc_matrix(Mtt), check=False), keep
+
+
+def chordal_problem(graph):
+    """The chordal problem of a pose graph, weights from its g2o information matrices.
+
+    ``kappa = Omega_33`` and ``tau = 2 / tr(Omega_tt^-1)`` (SE-Sync's rule,
+    :func:`lagolib.metrics.sesync_parameters`): the translation term is isotropic, so it is the
+    same in the frame of pose ``i`` (where the information lives, g2o convention) and in the world
+    frame (where the complex residual ``t_j - t_i - z_i t~_ij`` lives); the cross terms
+    ``Omega_13, Omega_23`` are dropped.  With isotropic information ``Omega = diag(w, w, k)``,
+    ``f = chi2`` to second order in the residuals.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+
+    Returns
+    -------
+    ChordalProblem
+    """
+    if not isinstance(graph, PoseGraph):
+        raise OptionTypeError(
+            f"chordal_problem: graph must be a PoseGraph; got {type(graph).__name__}"
+        )
+    kappa, tau = sesync_parameters(graph)
+    z = graph.measurements
+    return ChordalProblem(
+        graph=graph,
+        i=graph.edges[:, 0].astype(np.int64),
+        j=graph.edges[:, 1].astype(np.int64),
+        t_meas=z[:, 0] + 1j * z[:, 1],
+        R_meas=np.exp(1j * z[:, 2]),
+        kappa=kappa,
+        tau=tau,
+    )
+
+
+def _problem(graph_or_problem, where):
+    if isinstance(graph_or_problem, ChordalProblem):
+        return graph_or_problem
+    if isinstance(graph_or_problem, PoseGraph):
+        return chordal_problem(graph_or_problem)
+    raise OptionTypeError(
+        f"{where}: expected a PoseGraph or ChordalProblem; got {type(graph_or_problem).__name__}"
+    )
+
+
+def to_complex(poses):
+    """Poses ``(x, y, theta)`` as ``x = [t; z]``: ``t = x + i y``, ``z = exp(i theta)``.
+
+    Parameters
+    ----------
+    poses : ndarray, shape (n, 3)
+
+    Returns
+    -------
+    ndarray of complex, shape (2 n,)
+    """
+    poses = np.asarray(poses, dtype=float)
+    return np.concatenate([poses[:, 0] + 1j * poses[:, 1], np.exp(1j * poses[:, 2])])
+
+
+def from_complex(x):
+    """``x = [t; z]`` back to poses ``(x, y, angle(z))``; ``|z_i|`` need not be 1.
+
+    Parameters
+    ----------
+    x : ndarray of complex, shape (2 n,)
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+    """
+    x = np.asarray(x)
+    n = x.size // 2
+    return np.column_stack([x[:n].real, x[:n].imag, np.angle(x[n:])])
+
+
+def data_matrix(problem):
+    """The Hermitian data matrix ``M`` with ``f(x) = x^H M x`` (Carlone et al., TRO 2016).
+
+    Per edge the residuals are linear in ``x = [t; z]``: ``r_t = a^T x`` with ``a = e_j - e_i -
+    t~_ij e_{n+i}`` and ``r_z = b^T x`` with ``b = e_{n+j} - R~_ij e_{n+i}``, so
+    ``|r|^2 = x^H conj(a) a^T x`` and
+
+    .. math:: M = \\sum_{ij} \\tau_{ij} \\bar a a^T + \\kappa_{ij} \\bar b b^T
+
+    Parameters
+    ----------
+    problem : ChordalProblem or PoseGraph
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix of complex, shape (2 n, 2 n)
+        Hermitian, positive semidefinite; 13 entries per edge before summing duplicates.
+    """
+    p = _problem(problem, "data_matrix")
+    n, i, j, tau, kappa = p.n, p.i, p.j, p.tau, p.kappa
+    # translation term: indices (j, i, n+i) with coefficients a = (1, -1, -t~)
+    idx_t = np.stack([j, i, n + i], axis=1)  # (m, 3)
+    a = np.stack([np.ones(p.m), -np.ones(p.m), -p.t_meas], axis=1).astype(complex)
+    # rotation term: indices (n+j, n+i) with coefficients b = (1, -R~)
+    idx_z = np.stack([n + j, n + i], axis=1)
+    b = np.stack([np.ones(p.m), -p.R_meas], axis=1).astype(complex)
+    rows = np.concatenate(
+        [np.repeat(idx_t, 3, axis=1).ravel(), np.repeat(idx_z, 2, axis=1).ravel()]
+    )
+    cols = np.concatenate([np.tile(idx_t, 3).ravel(), np.tile(idx_z, 2).ravel()])
+    vals = np.concatenate(
+        [
+            (tau[:, None, None] * a.conj()[:, :, None] * a[:, None, :]).ravel(),  # tau conj(a) a^T
+            (
+                kappa[:, None, None] * b.conj()[:, :, None] * b[:, None, :]
+            ).ravel(),  # kappa conj(b) b^T
+        ]
+    )
+    return sp.csr_matrix((vals, (rows, cols)), shape=(2 * n, 2 * n))
+
+
+def chordal_cost(problem, poses, *, per_edge=False):
+    """The chordal cost ``f`` as the direct sum over edges (no matrix).
+
+    .. math:: f = \\sum_{ij} \\kappa_{ij} |z_j - z_i \\tilde R_{ij}|^2
+                  + \\tau_{ij} |t_j - t_i - z_i \\tilde t_{ij}|^2
+
+    Parameters
+    ----------
+    problem : ChordalProblem or PoseGraph
+    poses : array_like, shape (n, 3), or complex ``x = [t; z]`` of shape (2 n,)
+        ``|z_i|`` is taken as given (1 for poses).
+    per_edge : bool
+        Return the ``m`` terms instead of their sum.
+
+    Returns
+    -------
+    float, or ndarray of shape (m,)
+    """
+    p = _problem(problem, "chordal_cost")
+    x = _as_x(p, poses, "chordal_cost")
+    n = p.n
+    t, z = x[:n], x[n:]
+    r_z = z[p.j] - z[p.i] * p.R_meas
+    r_t = t[p.j] - t[p.i] - z[p.i] * p.t_meas
+    terms = p.kappa * np.abs(r_z) ** 2 + p.tau * np.abs(r_t) ** 2
+    return terms if per_edge else float(terms.sum())
+
+
+def _as_x(p, poses, where, *, lifted=False):
+    """Poses (n, 3) or a complex ``x = [t; z]`` (2 n,) — or, with ``lifted``, a complex
+    ``X = [T; Y]`` of shape (2 n, r) — as a complex array."""
+    arr = np.asarray(poses)
+    if np.iscomplexobj(arr):
+        ok = arr.shape == (2 * p.n,) or (lifted and arr.ndim == 2 and arr.shape[0] == 2 * p.n)
+        if not ok or not np.all(np.isfinite(arr)):
+            want = f"({2 * p.n},)" + (f" or ({2 * p.n}, r)" if lifted else "")
+            raise OptionError(
+                f"{where}: a complex x = [t; z] must have shape {want} and be finite; "
+                f"got shape {arr.shape}"
+            )
+        return arr
+    return to_complex(as_graph_poses(p.graph, poses, "poses", "poses"))
+
+
+# ----------------------------------------------------------------------------- local solver
+class ChordalSystem(LinearSystem):
+    """``H`` and ``b`` of the chordal cost over ``(x, y, theta)`` per pose (Gauss–Newton).
+
+    Per edge the residual is real, ``r = [t_j - t_i - R(theta_i) t~; cos theta_j -
+    cos(theta_i + delta); sin theta_j - sin(theta_i + delta)]`` (4 entries), weighted by
+    ``diag(tau, tau, kappa, kappa)``: ``r^T W r`` is the edge's term of ``f``.  The sparsity
+    pattern, assembly and update are :class:`lagolib.gauss_newton.LinearSystem`'s.
+    """
+
+    def __init__(self, problem, *, fixed=()):
+        super().__init__(problem.graph, fixed=fixed)
+        self.problem = problem
+        w = np.stack([problem.tau, problem.tau, problem.kappa, problem.kappa], axis=1)
+        self._W = w[:, :, None] * np.eye(4)  # (m, 4, 4)
+
+    def _edge_weights(self):
+        return self._W
+
+    def _terms(self, poses):
+        p = self.problem
+        pi, pj = poses[p.i], poses[p.j]
+        c, s = np.cos(pi[:, 2]), np.sin(pi[:, 2])
+        a, b = p.t_meas.real, p.t_meas.imag
+        ang = pi[:, 2] + np.angle(p.R_meas)
+        m = p.m
+        e = np.empty((m, 4))
+        e[:, 0] = pj[:, 0] - pi[:, 0] - (c * a - s * b)  # t_j - t_i - R(theta_i) t~
+        e[:, 1] = pj[:, 1] - pi[:, 1] - (s * a + c * b)
+        e[:, 2] = np.cos(pj[:, 2]) - np.cos(ang)  # z_j - z_i R~
+        e[:, 3] = np.sin(pj[:, 2]) - np.sin(ang)
+        J = np.zeros((m, 4, 6))
+        J[:, 0, 0] = J[:, 1, 1] = -1.0
+        J[:, 0, 3] = J[:, 1, 4] = 1.0
+        J[:, 0, 2] = s * a + c * b  # -dR/dtheta t~
+        J[:, 1, 2] = -(c * a - s * b)
+        J[:, 2, 2], J[:, 3, 2] = np.sin(ang), -np.cos(ang)
+        J[:, 2, 5], J[:, 3, 5] = -np.sin(pj[:, 2]), np.cos(pj[:, 2])
+        return e, J, np.zeros((0, 3)), np.zeros((0, 3, 3))
+
+    def objective(self, poses):
+        return chordal_cost(self.problem, poses)
+
+
+class ChordalNewtonSystem(ChordalSystem):
+    r"""The exact (Riemannian) Hessian of ``f`` over ``(x, y, theta)``: Newton's method.
+
+    Move pose ``p`` by ``u_p = (dx, dy, omega)``: ``t_p += dx + i dy`` and ``z_p *=
+    exp(i omega)``, to first order ``x + P u`` with ``P`` taking ``omega_p`` to ``i z_p``.  Then
+
+    .. math:: f(u) = f + 2 \mathrm{Re}(x^H M P u) + u^T \mathrm{Re}(P^H S P) u + O(|u|^3),
+
+    with ``S = M - blkdiag(0, diag(lambda))`` the certificate's matrix at the current point
+    (the ``-lambda_i omega_i^2`` is the circle's curvature).  So ``b = 2 Re(P^H M x)`` and
+    ``H = 2 Re(P^H S P)`` — the certificate's ``S`` restricted to the tangent directions, which
+    is indefinite near a saddle; Levenberg's damping (:func:`refine`'s ``method="lm"``) handles
+    that.  Both are formed as sparse products of the real forms, ``O(m)``.
+    """
+
+    def __init__(self, problem, *, fixed=()):
+        super().__init__(problem, fixed=fixed)
+        n, k = problem.n, self.free.size
+        cols = np.arange(3 * k)
+        self._P_rows = np.stack([self.free, 2 * n + self.free], axis=1)  # Re t, Im t rows
+        self._P_cols = cols.reshape(k, 3)
+        self._z_re_rows, self._z_im_rows = n + self.free, 3 * n + self.free
+        self._shape = (4 * n, 3 * k)
+
+    def _P(self, poses):
+        """``P`` in real form, shape (4 n, 3 k): columns ``(dx, dy, omega)`` of the free poses."""
+        th = poses[self.free, 2]
+        c = self._P_cols
+        rows = np.concatenate(
+            [self._P_rows[:, 0], self._P_rows[:, 1], self._z_re_rows, self._z_im_rows]
+        )
+        cols = np.concatenate([c[:, 0], c[:, 1], c[:, 2], c[:, 2]])
+        vals = np.concatenate(
+            [np.ones(2 * c.shape[0]), -np.sin(th), np.cos(th)]
+        )  # i z = -sin + i cos
+        return sp.csr_matrix((vals, (rows, cols)), shape=self._shape)
+
+    def assemble(self, poses):
+        p = self.problem
+        n = p.n
+        x = to_complex(poses)
+        Mx = p.M @ x
+        lam = (x[n:].conj() * Mx[n:]).real  # multipliers at the current point
+        P = self._P(poses)
+        S = p._M_real - sp.diags(np.concatenate([np.zeros(n), lam, np.zeros(n), lam]))
+        H = (2.0 * (P.T @ (S @ P))).tocsr()  # 2 Re(P^H S P)
+        H = 0.5 * (H + H.T)
+        b = 2.0 * (P.T @ np.concatenate([Mx.real, Mx.imag]))  # 2 Re(P^H M x)
+        return H, b, float((x.conj() @ Mx).real)
+
+    def damped(self, H, lam):
+        return (H + lam * sp.identity(H.shape[0], format="csr")).tocsr()
+
+
+def refine(
+    problem,
+    initial=None,
+    *,
+    method="newton",
+    max_iterations=200,
+    tol=1e-14,
+    step_tol=1e-12,
+    verbose=False,
+):
+    """Minimize the chordal cost ``f`` locally from ``initial``: Newton (default) or Gauss–Newton.
+
+    The loop is :func:`lagolib.optimize`'s; the first pose (the one with the smallest id) is
+    held fixed.  ``method="newton"`` uses the exact Hessian (:class:`ChordalNewtonSystem`) with
+    Levenberg's damping, raised until ``H + lambda I`` is positive definite — quadratic
+    convergence, and safe near saddles.  ``method="gn"`` is Gauss–Newton on the chordal
+    residuals (:class:`ChordalSystem`): simpler, linear convergence when the residuals are
+    large (48 iterations on INTEL where Newton needs a handful).  Started at a χ² optimum the
+    first step is small but not zero: the two costs have nearby, different minima.
+
+    Parameters
+    ----------
+    problem : ChordalProblem or PoseGraph
+    initial : array_like, shape (n, 3), optional
+        Default ``graph.poses``.
+    method : {"newton", "gn"}
+    max_iterations : int
+    tol, step_tol : float
+        As in :func:`lagolib.optimize`; the defaults polish to the last digits, which the
+        certificate needs (it reads the multipliers off the gradient).
+    verbose : bool
+
+    Returns
+    -------
+    OptimizeResult
+        ``error="chordal"``; ``chi2`` and ``chi2_history`` hold the chordal cost ``f``.
+    """
+    t0 = time.perf_counter()
+    p = _problem(problem, "refine")
+    where = "refine"
+    method = check_choice(method, "method", where, ("newton", "gn"))
+    max_iterations = check_int(max_iterations, "max_iterations", where, minimum=0)
+    tol = check_real(tol, "tol", where, minimum=0.0)
+    step_tol = check_real(step_tol, "step_tol", where, minimum=0.0)
+    verbose = check_bool(verbose, "verbose", where)
+    x = as_graph_poses(p.graph, initial, "initial", "initial guess")
+    fixed = [int(p.graph.ids[0])] if p.n else []
+    if method == "gn":
+        system, control = ChordalSystem(p, fixed=fixed), _GaussNewtonSteps(10)
+    else:
+        system, control = ChordalNewtonSystem(p, fixed=fixed), _LevenbergMarquardtDamping(1e-8)
+    solve_ = _LinearSolver("cholesky", "auto")
+    trace = _Trace(method, verbose)
+    x, f, stop = _minimize(system, x, control, solve_, trace, max_iterations, tol, step_tol, None)
+    converged, reason = stop or (False, f"reached max_iterations={max_iterations}")
+    trace.timings["total"] = time.perf_counter() - t0
+    return OptimizeResult(
+        poses=x,
+        chi2=f,
+        chi2_history=trace.history,
+        step_norms=trace.steps,
+        iterations=trace.iterations,
+        converged=converged,
+        reason=reason,
+        method=method,
+        error="chordal",
+        graph=p.graph.with_poses(x),
+        lambdas=trace.lambdas,
+        step_fractions=trace.fractions,
+        timings=trace.timings,
+    )
+
+
+def optimal_translations(problem, z, t_anchor=0j):
+    """The translations that minimize ``f`` for given rotations ``z`` (a linear solve).
+
+    ``f`` is quadratic in ``t``: ``M_tt t = -M_tz z`` with ``M_tt`` the ``tau``-weighted graph
+    Laplacian, solved with the first pose's translation held at ``t_anchor``.
+
+    Parameters
+    ----------
+    problem : ChordalProblem or PoseGraph
+    z : ndarray of complex, shape (n,) or (n, r)
+        Rotations (or the rows ``Y`` of a lifted point, one column at a time).
+    t_anchor : complex, or sequence of r complex
+
+    Returns
+    -------
+    ndarray of complex, shape of ``z``
+    """
+    p = _problem(problem, "optimal_translations")
+    n = p.n
+    Z = np.asarray(z, dtype=complex)
+    Z2 = Z[:, None] if Z.ndim == 1 else Z
+    anchor = np.broadcast_to(np.asarray(t_anchor, dtype=complex), (Z2.shape[1],))
+    factor, keep = p._translation_factor
+    M = p.M
+    rhs = -(M[:n, n:] @ Z2)[keep] - M[:n, :n][keep][:, [0]].toarray() * anchor[None, :]
+    r = Z2.shape[1]
+    sol = factor.solve(np.concatenate([rhs.real, rhs.imag], axis=1))
+    T = np.empty_like(Z2)
+    T[0] = anchor
+    T[keep] = sol[:, :r] + 1j * sol[:, r:]
+    return T[:, 0] if Z.ndim == 1 else T
+
+
+# ----------------------------------------------------------------------------- certificate
+def multipliers(problem, x):
+    """Lagrange multipliers of ``|z_i|^2 = 1``: ``lambda_i = Re(conj(z_i) (M x)_{n+i})``.
+
+    At a stationary point ``(M x)_{n+i} = lambda_i z_i`` (first-order condition of
+    ``x^H M x - sum lambda_i (|z_i|^2 - 1)``); the real part of ``conj(z_i) (M x)_{n+i}`` is that
+    ``lambda_i`` at any point, and its imaginary part is the gradient along the circle.
+
+    Parameters
+    ----------
+    problem : ChordalProblem or PoseGraph
+    x : array_like, shape (n, 3) poses, or complex (2 n,)
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    p = _problem(problem, "multipliers")
+    x = _as_x(p, x, "multipliers")
+    n = p.n
+    return (x[n:].conj() * (p.M @ x)[n:]).real
+
+
+def certificate_matrix(problem, x):
+    """``S = M - blkdiag(0, diag(lambda))``, shape (2 n, 2 n), sparse Hermitian.
+
+    At a stationary point ``S x = 0``, and ``S [1; 0] = 0`` (a global translation); ``x`` is a
+    global minimum when ``S`` is positive semidefinite.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix of complex, shape (2 n, 2 n)
+    """
+    p = _problem(problem, "certificate_matrix")
+    lam = multipliers(p, x)
+    n = p.n
+    return (p.M - sp.diags(np.concatenate([np.zeros(n), lam]))).tocsr()
+
+
+def reduced_certificate_matrix(problem, x):
+    """``K``: ``S`` without the first pose's translation, as a real symmetric matrix.
+
+    Translations are unconstrained and ``f`` does not change when all move together, so fixing
+    ``t_0`` loses nothing: the Schur complement of ``K`` on the rotations is ``S~ = S_zz -
+    S_zt S_tt^+ S_tz``, whose eigenvalues the certificate tests.  ``K`` is real:
+    ``[[Re K, -Im K], [Im K, Re K]]`` on ``[Re v; Im v]``, so every eigenvalue appears twice.
+
+    Returns
+    -------
+    K : scipy.sparse.csc_matrix, shape (4 n - 2, 4 n - 2)
+    zrows : ndarray of int, shape (2, n)
+        Rows of ``Re z`` and ``Im z`` in ``K``.
+    """
+    p = _problem(problem, "reduced_certificate_matrix")
+    lam = multipliers(p, x)
+    U, zrows, slots = p._real_form
+    data = U.data.copy()
+    data[slots] -= np.tile(lam, 2)  # S = M - blkdiag(0, diag(lambda))
+    U = sp.csc_matrix((data, U.indices, U.indptr), shape=U.shape)
+    return (U + sp.triu(U, k=1).T).tocsc(), zrows
+
+
+class _ShiftedFactor:
+    """``L D L^T`` of ``K + s I_z`` for several shifts ``s`` (one symbolic analysis, qdldl).
+
+    ``K`` is :func:`reduced_certificate_matrix` at multipliers ``lam``; only the rotation rows'
+    diagonal changes with ``lam`` and ``s``, so the upper triangle of the real form of ``M`` is
+    built once per problem (``ChordalProblem._real_form``) and its diagonal overwritten.
+    """
+
+    def __init__(self, problem, lam):
+        import qdldl
+
+        self._qdldl = qdldl
+        U, self.zrows, self._slots = problem._real_form
+        self._U = U
+        self._base = U.data[self._slots] - np.tile(lam, 2)
+        self._solver = None
+
+    def factor(self, shift):
+        """Factor ``K + shift I_z``; True when it is positive definite."""
+        data = self._U.data.copy()
+        data[self._slots] = self._base + shift
+        U = sp.csc_matrix((data, self._U.indices, self._U.indptr), shape=self._U.shape)
+        try:
+            if self._solver is None:
+                self._solver = self._qdldl.Solver(U, upper=True)
+            else:
+                self._solver.update(U, upper=True)
+        except (RuntimeError, ValueError):  # an exactly zero pivot: not positive definite
+            self._solver = None
+            return False
+        d = self._solver.factors()[1]
+        return bool(np.all(d > 0))
+
+    def solve(self, rhs):
+        return self._solver.solve(rhs)
+
+
+@dataclass
+class Certificate:
+    """What :func:`certify` found.
+
+    Attributes
+    ----------
+    certified : bool
+        ``lambda_min(S~) >= -eta``: the point is a global minimum of the chordal cost, up to
+        ``eta``.
+    f : float
+        Chordal cost at the point.
+    multipliers : ndarray, shape (n,)
+        ``lambda_i``.
+    eta : float
+        The tolerance used.
+    eigenvalues : ndarray
+        The smallest eigenvalues of ``S~`` computed (ascending; empty when certified with
+        ``eigenvalues=0``).
+    lower_bound : float
+        ``sum(lambda) + n min(lambda_min, 0) <= f*`` (with ``lambda_min >= -eta`` when no
+        eigenvalue was computed).
+    gap, relative_gap : float
+        ``f - lower_bound`` and the gap over ``f``: how far above the global optimum ``f`` can
+        be, at most.
+    eigenvector : ndarray of complex, shape (n,), or None
+        The rotation part of the eigenvector of ``lambda_min`` (unit norm) when not certified.
+    gradient : float
+        ``max |Im(conj(z_i) (M x)_{n+i})|`` and ``max |(M x)_t|`` together: how stationary the
+        point is (the multipliers are exact only at a stationary point).
+    seconds : float
+    """
+
+    certified: bool
+    f: float
+    multipliers: np.ndarray
+    eta: float
+    eigenvalues: np.ndarray
+    lower_bound: float
+    gap: float
+    relative_gap: float
+    gradient: float
+    eigenvector: np.ndarray | None = None
+    seconds: float = 0.0
+
+    @property
+    def lambda_min(self):
+        """The smallest eigenvalue of ``S~`` if computed, else None (certified: ``>= -eta``)."""
+        return float(self.eigenvalues[0]) if self.eigenvalues.size else None
+
+    def __repr__(self):
+        lm = "not computed" if self.lambda_min is None else f"{self.lambda_min:.4g}"
+        return (
+            f"Certificate(certified={self.certified}, f={self.f:.10g}, lambda_min={lm}, "
+            f"eta={self.eta:.3g}, lower_bound={self.lower_bound:.10g}, "
+            f"relative_gap={self.relative_gap:.3g})"
+        )
+
+
+def _smallest(factor, shift, k):
+    """The ``k`` smallest eigenvalues of ``S~`` and the first eigenvector, by shift-and-invert
+    Lanczos: ``factor`` holds ``K + shift I_z`` (positive definite, so ``-shift < lambda_min``),
+    and the rotation block of its inverse is ``(S~ + shift I)^-1``."""
+    flat = factor.zrows.ravel()
+    N, nz = factor._U.shape[0], flat.size
+
+    def op(v):
+        rhs = np.zeros(N)
+        rhs[flat] = np.ravel(v)
+        return factor.solve(rhs)[flat]
+
+    A = spla.LinearOperator((nz, nz), matvec=op, dtype=float)
+    kk = min(2 * k, nz - 1)  # every eigenvalue of the real form appears twice
+    v0 = np.random.default_rng(0).standard_normal(nz)
+    mu, vec = spla.eigsh(A, k=kk, which="LA", v0=v0, tol=1e-12)
+    lam = 1.0 / mu - shift
+    order = np.argsort(lam)
+    lam, vec = lam[order], vec[:, order]
+    n = nz // 2
+    v = vec[:n, 0] + 1j * vec[n:, 0]
+    return _pairs(lam)[:k], v / np.linalg.norm(v)
+
+
+def _pairs(lam):
+    """One of each pair of equal eigenvalues of a complex matrix's real form (sorted input)."""
+    out, i = [], 0
+    while i < lam.size:
+        out.append(lam[i])
+        scale = max(abs(lam[i]), 1e-300)
+        i += 2 if i + 1 < lam.size and abs(lam[i + 1] - lam[i]) <= 1e-6 * scale + 1e-14 else 1
+    return np.array(out)
+
+
+def certify(problem, poses, *, eta=None, eigenvalues=0):
+    """Certify that ``poses`` is a global minimum of the chordal cost — or bound how far it is.
+
+    A sparse ``L D L^T`` factorization of ``K + eta I_z`` (:func:`reduced_certificate_matrix`)
+    succeeds exactly when ``lambda_min(S~) > -eta``: one factorization, the same work as one
+    Gauss–Newton iteration on a 4/3 larger system.  When it fails, ``lambda_min`` and its
+    eigenvector come from shift-and-invert Lanczos, after a few factorizations that bracket
+    ``lambda_min`` within a factor of 2 (the number of negative pivots of ``L D L^T`` is the
+    number of eigenvalues below the shift, Sylvester's law of inertia).
+
+    **Why a tolerance.**  ``S~`` is singular at a stationary point (``S~ z = 0``), so its smallest
+    eigenvalue is 0 in exact arithmetic and ``±(rounding)`` in floating point; and the
+    multipliers are read off a point the local solver reached only to ``tol``.  Both errors
+    scale with the multipliers, so ``eta = ETA * mean(lambda)`` (``ETA = 1e-7``): at a
+    certified optimum of the benchmarks, ``lambda_min`` is 1e-13 to 1e-10 of that scale; at a
+    local minimum that is not global it is 1e-4 or larger.
+
+    Parameters
+    ----------
+    problem : ChordalProblem or PoseGraph
+    poses : array_like, shape (n, 3)
+        A stationary point of the chordal cost (:func:`refine`); elsewhere the multipliers, and
+        so the certificate, mean little (``Certificate.gradient`` says how stationary it is).
+    eta : float, optional
+        Absolute tolerance; default ``ETA * mean(lambda)``.
+    eigenvalues : int
+        Also compute this many smallest eigenvalues of ``S~`` when certified (``>= 0``; one is
+        always computed when not certified).
+
+    Returns
+    -------
+    Certificate
+    """
+    t0 = time.perf_counter()
+    p = _problem(problem, "certify")
+    where = "certify"
+    k = check_int(eigenvalues, "eigenvalues", where, minimum=0)
+    X = _as_x(p, poses, where, lifted=True)
+    X = X[:, None] if X.ndim == 1 else X
+    n = p.n
+    if n < 2:
+        raise OptionError(f"{where}: the graph needs at least 2 poses; it has {n}")
+    MX = p.M @ X
+    lam = np.sum(X[n:].conj() * MX[n:], axis=1).real  # lambda_i = Re(conj(z_i) (M x)_{n+i})
+    rgrad = MX[n:] - lam[:, None] * X[n:]  # the gradient's component along the spheres
+    gradient = float(max(np.max(np.abs(rgrad)), np.max(np.abs(MX[:n]))))
+    if eta is None:
+        eta = ETA * max(float(np.mean(np.abs(lam))), np.finfo(float).tiny)
+    else:
+        eta = check_real(eta, "eta", where, minimum=0.0)
+    factor = _ShiftedFactor(p, lam)
+    certified = factor.factor(eta)  # K + eta I_z = L D L^T with D > 0  <=>  lambda_min(S~) > -eta
+    eigvals, vec = np.zeros(0), None
+    if certified and k:
+        eigvals, _ = _smallest(factor, eta, k)
+    elif not certified:
+        shift = _bracket(factor, eta, float(np.max(np.abs(lam))) + eta)
+        eigvals, vec = _smallest(factor, shift, max(k, 1))
+    lam_min = float(eigvals[0]) if eigvals.size else -eta
+    f = float(np.sum(X.conj() * MX).real)
+    bound = float(lam.sum()) + n * min(lam_min, 0.0)
+    gap = max(f - bound, 0.0)
+    return Certificate(
+        certified=certified,
+        f=f,
+        multipliers=lam,
+        eta=float(eta),
+        eigenvalues=eigvals,
+        lower_bound=bound,
+        gap=gap,
+        relative_gap=gap / f if f > 0 else 0.0,
+        gradient=gradient,
+        eigenvector=None if certified else vec,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def _bracket(factor, lo, hi):
+    """A shift ``s`` with ``K + s I_z`` positive definite and ``K + (s/2) I_z`` not, given that
+    ``lo`` fails and ``hi`` succeeds (``hi > max lambda_i``: ``S~ = M~ - diag(lambda)`` and
+    ``M~`` is positive semidefinite).  Bisection on ``log s``; ``factor`` ends factored at the
+    returned shift."""
+    while hi > 2.0 * lo:
+        mid = math.sqrt(lo * hi)
+        if factor.factor(mid):
+            hi = mid
+        else:
+            lo = mid
+    if not factor.factor(hi):  # pragma: no cover - hi was positive definite before
+        raise NotPositiveDefiniteError("certify: lost positive definiteness at a tested shift")
+    return hi
+
+
+# ----------------------------------------------------------------------------- escape
+def lifted_cost(problem, X):
+    """``f(X) = tr(X^H M X)`` for a lifted ``X = [T; Y]``, shape (2 n, r), rows of ``Y`` unit.
+
+    At ``r = 1`` this is the chordal cost; for ``r > 1`` it is the cost of the rank-``r``
+    relaxation (Burer–Monteiro), whose minimum over all ``r`` is the semidefinite relaxation's
+    value — a lower bound on the chordal optimum ``f*``.
+    """
+    p = _problem(problem, "lifted_cost")
+    X = _as_x(p, X, "lifted_cost", lifted=True)
+    return float(np.sum(X.conj() * (p.M @ X)).real)
+
+
+class LiftedSystem:
+    """Newton's method for ``tr(X^H M X)`` with the rows of ``Y`` on unit spheres of ``C^r``.
+
+    The rank-``r`` generalization of :class:`ChordalNewtonSystem`: pose ``i`` moves by
+    ``dT_i`` (``2 r`` reals) and by ``B_i w_i`` along its sphere (``B_i``: an orthonormal basis of
+    the tangent space of the real ``2 r``-vector ``y_i``, from a Householder reflection;
+    ``w_i``: ``2 r - 1`` reals), then ``y_i`` is normalized again.  ``H = 2 P^T (I_r ⊗ S) P``
+    and ``b = 2 P^T vec(M X)`` with ``S`` the certificate's matrix at the current point.  The
+    first pose is held fixed.  Used by :func:`solve`'s staircase; :func:`_minimize` runs it.
+    """
+
+    def __init__(self, problem, r):
+        self.problem, self.r = problem, r
+        self.graph = problem.graph
+        self.priors, self._prior_info = [], np.zeros((0, 3, 3))
+        n = problem.n
+        self.free = np.arange(1, n)
+        self.d = 4 * r - 1  # unknowns per pose
+        self.N = self.d * self.free.size
+
+    def _unpack(self, X):
+        """Real rows of ``Y``: shape (n, 2 r), ``[Re y_i, Im y_i]``."""
+        n = self.problem.n
+        return np.concatenate([X[n:].real, X[n:].imag], axis=1)
+
+    def _basis(self, X):
+        """Orthonormal tangent bases ``B_i``, shape (k, 2 r, 2 r - 1), for the free poses."""
+        y = self._unpack(X)[self.free]
+        D = y.shape[1]
+        sign = np.where(y[:, 0] >= 0, 1.0, -1.0)
+        v = y.copy()
+        v[:, 0] += sign  # Householder vector: (I - 2 v v^T / v^T v) y = -sign e_0
+        Hh = np.eye(D)[None] - 2.0 * v[:, :, None] * v[:, None, :] / np.sum(v * v, 1)[:, None, None]
+        return Hh[:, :, 1:]
+
+    def _P(self, X):
+        """``P`` (real form, per column of ``X``): list of ``r`` sparse (4 n, N) matrices."""
+        n, r, k = self.problem.n, self.r, self.free.size
+        B = self._basis(X)  # (k, 2r, 2r-1)
+        base = self.d * np.arange(k)
+        Ps = []
+        for c in range(r):
+            rows, cols, vals = [], [], []
+            rows += [self.free, 2 * n + self.free]  # Re T_ic, Im T_ic
+            cols += [base + 2 * c, base + 2 * c + 1]
+            vals += [np.ones(k), np.ones(k)]
+            for part, off in ((c, n), (r + c, 3 * n)):  # Re Y_ic, Im Y_ic
+                rr = np.repeat(off + self.free, 2 * r - 1)
+                cc = (base[:, None] + 2 * r + np.arange(2 * r - 1)).ravel()
+                rows.append(rr)
+                cols.append(cc)
+                vals.append(B[:, part, :].ravel())
+            Ps.append(
+                sp.csr_matrix(
+                    (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                    shape=(4 * n, self.N),
+                )
+            )
+        return Ps
+
+    def assemble(self, X):
+        p, n = self.problem, self.problem.n
+        MX = p.M @ X
+        lam = np.sum(X[n:].conj() * MX[n:], axis=1).real
+        S = p._M_real - sp.diags(np.concatenate([np.zeros(n), lam, np.zeros(n), lam]))
+        H = sp.csr_matrix((self.N, self.N))
+        b = np.zeros(self.N)
+        for c, P in enumerate(self._P(X)):
+            H = H + P.T @ (S @ P)
+            b += P.T @ np.concatenate([MX[:, c].real, MX[:, c].imag])
+        H = (H + H.T).tocsr()  # 2 sym(P^T S P)
+        return H, 2.0 * b, float(np.sum(X.conj() * MX).real)
+
+    def objective(self, X):
+        return lifted_cost(self.problem, X)
+
+    def update(self, X, dx):
+        n, r = self.problem.n, self.r
+        u = dx.reshape(-1, self.d)
+        out = X.copy()
+        out[self.free] += u[:, 0 : 2 * r : 2] + 1j * u[:, 1 : 2 * r : 2]
+        y = self._unpack(X)
+        y[self.free] += np.einsum("kab,kb->ka", self._basis(X), u[:, 2 * r :])
+        y /= np.linalg.norm(y, axis=1, keepdims=True)  # retraction: back onto the spheres
+        out[n:] = y[:, :r] + 1j * y[:, r:]
+        return out
+
+    def damped(self, H, lam):
+        return (H + lam * sp.identity(H.shape[0], format="csr")).tocsr()
+
+
+def refine_lifted(problem, X, *, max_iterations=200, tol=1e-14, step_tol=1e-12):
+    """Newton (with Levenberg's damping) on the rank-``r`` relaxation from ``X``.
+
+    Returns
+    -------
+    X : ndarray of complex, shape (2 n, r)
+    f : float
+    iterations : int
+    """
+    p = _problem(problem, "refine_lifted")
+    X = _as_x(p, X, "refine_lifted", lifted=True)
+    X = X[:, None] if X.ndim == 1 else X
+    system = LiftedSystem(p, X.shape[1])
+    trace = _Trace("lm", False)
+    control = _LevenbergMarquardtDamping(1e-8)
+    X, f, _ = _minimize(
+        system,
+        X,
+        control,
+        _LinearSolver("cholesky", "auto"),
+        trace,
+        max_iterations,
+        tol,
+        step_tol,
+        None,
+    )
+    return X, f, trace.iterations
+
+
+def escape(problem, X, certificate, *, max_halvings=40):
+    """Escape a point the certificate rejected: add a column along the eigenvector (a saddle).
+
+    At rank ``r + 1`` the rejected point ``[X, 0]`` is stationary, and along ``[0, v]``, with
+    ``v`` the eigenvector of ``lambda_min(S~) < 0``, the cost falls as ``f + alpha^2
+    lambda_min`` (SE-Sync's saddle escape, one step of the Riemannian staircase): the new
+    column opens a direction the rank-``r`` problem does not have.  Rows are normalized again and
+    translations re-solved (:func:`optimal_translations`); ``alpha`` starts at ``sqrt(n)``
+    (entries of ``v`` the size of the ``y_i``) and is halved until ``f`` decreases.
+
+    Parameters
+    ----------
+    problem : ChordalProblem or PoseGraph
+    X : poses (n, 3) or complex ``x`` (2 n,) or ``X`` (2 n, r)
+        The rejected point.
+    certificate : Certificate
+        Its certificate (``certified=False``; it carries the eigenvector).
+    max_halvings : int
+
+    Returns
+    -------
+    X : ndarray of complex, shape (2 n, r + 1)
+    alpha : float
+        The step; 0.0 (and ``X`` unchanged, padded) when no step decreased ``f``.
+    """
+    p = _problem(problem, "escape")
+    if not isinstance(certificate, Certificate) or certificate.eigenvector is None:
+        raise OptionError(
+            "escape: needs the Certificate of a point that was not certified (it carries the "
+            "eigenvector to move along); certify the point first"
+        )
+    max_halvings = check_int(max_halvings, "max_halvings", "escape", minimum=0)
+    X = _as_x(p, X, "escape", lifted=True)
+    X = X[:, None] if X.ndim == 1 else X
+    n = p.n
+    v = certificate.eigenvector / np.linalg.norm(certificate.eigenvector)
+    f0 = lifted_cost(p, X)
+    alpha = math.sqrt(n)
+    for _ in range(max_halvings + 1):
+        Y = np.column_stack([X[n:], alpha * v])
+        Y /= np.linalg.norm(Y, axis=1, keepdims=True)
+        T = optimal_translations(p, Y, X[0].tolist() + [0j])
+        Xn = np.vstack([T, Y])
+        if lifted_cost(p, Xn) < f0:
+            return Xn, alpha
+        alpha *= 0.5
+    return np.column_stack([X, np.zeros(2 * n)]), 0.0
+
+
+def _anchored(x, pose0):
+    """Poses of ``x = [t; z]`` moved rigidly so that the first one is ``pose0``."""
+    n = x.size // 2
+    rot = np.exp(1j * pose0[2]) * np.conj(x[n]) / abs(x[n])
+    t = (pose0[0] + 1j * pose0[1]) + rot * (x[:n] - x[0])
+    return from_complex(np.concatenate([t, rot * x[n:]]))
+
+
+def round_solution(problem, X):
+    """Round a lifted ``X`` (2 n, r) to poses: the dominant direction of ``Y``, unit modulus.
+
+    ``Y = U Sigma V^H``; ``z_i = u_i / |u_i|`` for the first left singular vector ``u`` (rank
+    one when the relaxation is tight, and then the rounding is exact), translations by
+    :func:`optimal_translations`; the result is moved rigidly so that the first pose is the
+    graph's first pose.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+    """
+    p = _problem(problem, "round_solution")
+    X = _as_x(p, X, "round_solution", lifted=True)
+    X = X[:, None] if X.ndim == 1 else X
+    n = p.n
+    Y = X[n:]
+    w, V = np.linalg.eigh(Y.conj().T @ Y)  # r x r: V's last column is the top right vector
+    u = Y @ V[:, -1]
+    z = u / np.maximum(np.abs(u), 1e-300)
+    t = optimal_translations(p, z, 0j)
+    return _anchored(np.concatenate([t, z]), p.graph.poses[0])
+
+
+# ----------------------------------------------------------------------------- the pipeline
+@dataclass
+class SolveResult:
+    """What :func:`solve` returns.
+
+    Attributes
+    ----------
+    poses : ndarray, shape (n, 3)
+        The χ² (lecture notes') optimum reached by Gauss–Newton from the best chordal point.
+    chi2 : float
+        Its χ².
+    chordal_poses : ndarray, shape (n, 3)
+        The chordal minimum that was certified (or the best one found).
+    f : float
+        Its chordal cost.
+    certificate : Certificate
+        The last certificate (of ``chordal_poses``).
+    certified : bool
+    escapes : int
+        Escape steps taken (each one rank up the Riemannian staircase).
+    lower_bound : float
+        The best lower bound on the global chordal optimum found on the way (every
+        certificate's, the relaxations' included); ``gap = f - lower_bound``.
+    start_chi2 : float
+        χ² of the start (LAGO's or ``initial``).
+    reason : str
+        Why the pipeline stopped: certified, or which budget ran out.
+    stages : list of dict
+        ``{"stage", "chi2", "f", "seconds", ...}`` per step of the pipeline, in order.
+    timings : dict
+        Seconds per kind of stage (``"lago"``, ``"gauss_newton"``, ``"refine"``, ``"certify"``,
+        ``"escape"``) and ``"total"``.
+    graph : PoseGraph
+        The input graph with ``poses``.
+    """
+
+    poses: np.ndarray
+    chi2: float
+    chordal_poses: np.ndarray
+    f: float
+    certificate: Certificate
+    certified: bool
+    escapes: int
+    reason: str
+    stages: list
+    timings: dict
+    graph: PoseGraph
+    lower_bound: float = float("nan")
+    start_chi2: float = float("nan")
+
+    @property
+    def gap(self):
+        """``f - lower_bound``: how far above the global chordal optimum ``f`` can be."""
+        return max(self.f - self.lower_bound, 0.0)
+
+    def __repr__(self):
+        return (
+            f"SolveResult(chi2={self.chi2:.10g}, f={self.f:.10g}, certified={self.certified}, "
+            f"escapes={self.escapes}, reason={self.reason!r})"
+        )
+
+
+def solve(graph, initial=None, *, tree=None, max_escapes=10, eta=None, verbose=False):
+    """The pipeline to call: LAGO → Gauss–Newton → chordal polish → certificate (→ escape).
+
+    1. ``initial``, or LAGO (:func:`lagolib.lago_solve`) with ``tree`` (default: LAGO's);
+    2. Gauss–Newton on χ² (:func:`lagolib.optimize`, LM if Gauss–Newton fails);
+    3. :func:`refine` — the chordal cost's local minimum next to it;
+    4. :func:`certify`; if not certified, :func:`escape`, :func:`refine` and :func:`certify`
+       again, at most ``max_escapes`` times;
+    5. Gauss–Newton on χ² from the best chordal point (when an escape moved it).
+
+    Parameters
+    ----------
+    graph : PoseGraph
+        Connected.
+    initial : array_like, shape (n, 3), optional
+        Start here instead of LAGO (e.g. ``graph.poses``, the odometry).
+    tree : str, optional
+        LAGO's spanning tree (:func:`lagolib.lago.regularize`).
+    max_escapes : int
+        The budget of escape steps (``>= 0``).  Each costs a factor of a few certifications.
+    eta : float, optional
+        :func:`certify`'s tolerance.
+    verbose : bool
+        One line per stage.
+
+    Returns
+    -------
+    SolveResult
+    """
+    t_start = time.perf_counter()
+    where = "solve"
+    if not isinstance(graph, PoseGraph):
+        raise OptionTypeError(f"{where}: graph must be a PoseGraph; got {type(graph).__name__}")
+    max_escapes = check_int(max_escapes, "max_escapes", where, minimum=0)
+    verbose = check_bool(verbose, "verbose", where)
+    stages, timings = (
+        [],
+        dict.fromkeys(("lago", "gauss_newton", "refine", "certify", "escape"), 0.0),
+    )
+
+    def record(stage, kind, seconds, **info):
+        timings[kind] += seconds
+        stages.append({"stage": stage, "seconds": seconds, **info})
+        if verbose:
+            extra = "  ".join(
+                f"{k} {v:.10g}" if isinstance(v, float) else f"{k} {v}" for k, v in info.items()
+            )
+            print(f"{stage:<28s} {seconds * 1e3:8.1f} ms  {extra}")
+
+    if initial is None:
+        t = time.perf_counter()
+        kw = {} if tree is None else {"tree": tree}
+        start = lago(graph, **kw).poses
+        record("LAGO", "lago", time.perf_counter() - t, chi2=chi2(graph, start))
+    else:
+        start = as_graph_poses(graph, initial, "initial", "initial guess")
+    start_chi2 = chi2(graph, start)
+    gn = _gauss_newton(graph, start)
+    record(
+        "Gauss-Newton", "gauss_newton", gn.timings["total"], chi2=gn.chi2, iterations=gn.iterations
+    )
+    p = chordal_problem(graph)
+    ref = refine(p, gn.poses)
+    record("chordal polish", "refine", ref.timings["total"], f=ref.chi2, iterations=ref.iterations)
+    cert = certify(p, ref.poses, eta=eta)
+    record("certificate", "certify", cert.seconds, certified=cert.certified, lambda_min=_lm(cert))
+    best, best_cert, bound = ref.poses, cert, cert.lower_bound
+    X, X_cert, escapes = to_complex(ref.poses), cert, 0
+    reason = "certified"
+    while not best_cert.certified:
+        if escapes >= max_escapes:
+            reason = f"not certified: the budget of max_escapes={max_escapes} ran out"
+            break
+        t = time.perf_counter()
+        X, alpha = escape(p, X, X_cert)  # one rank up, along the eigenvector of lambda_min
+        record(f"escape to rank {X.shape[1]}", "escape", time.perf_counter() - t, alpha=alpha)
+        if alpha == 0.0:  # pragma: no cover - the second-order decrease is guaranteed
+            reason = "not certified: no escape step decreases the cost"
+            break
+        escapes += 1
+        t = time.perf_counter()
+        X, f_X, it = refine_lifted(p, X)
+        record(f"rank-{X.shape[1]} polish", "refine", time.perf_counter() - t, f=f_X, iterations=it)
+        X_cert = certify(p, X, eta=eta)
+        record(
+            f"rank-{X.shape[1]} certificate",
+            "certify",
+            X_cert.seconds,
+            certified=X_cert.certified,
+            lambda_min=_lm(X_cert),
+        )
+        bound = max(bound, X_cert.lower_bound)
+        ref = refine(p, round_solution(p, X))  # back to rank one
+        record(
+            "round + chordal polish",
+            "refine",
+            ref.timings["total"],
+            f=ref.chi2,
+            iterations=ref.iterations,
+        )
+        cert = certify(p, ref.poses, eta=eta)
+        record(
+            "certificate", "certify", cert.seconds, certified=cert.certified, lambda_min=_lm(cert)
+        )
+        bound = max(bound, cert.lower_bound)
+        if cert.certified or cert.f < best_cert.f:
+            best, best_cert = ref.poses, cert
+        if best_cert.certified:
+            reason = f"certified after {escapes} escape(s), through rank {X.shape[1]}"
+        elif X_cert.certified:  # the relaxation's optimum, and it is not rank one
+            reason = (
+                f"not certified: the rank-{X.shape[1]} relaxation is certified optimal but its "
+                "solution is not rank one (the relaxation is not tight); the gap is the bound"
+            )
+            break
+    final = gn
+    if escapes:
+        final = _gauss_newton(graph, best)
+        record(
+            "Gauss-Newton",
+            "gauss_newton",
+            final.timings["total"],
+            chi2=final.chi2,
+            iterations=final.iterations,
+        )
+        if gn.chi2 < final.chi2:  # pragma: no cover - the certified basin is lower in every test
+            final = gn
+    timings["total"] = time.perf_counter() - t_start
+    return SolveResult(
+        poses=final.poses,
+        chi2=final.chi2,
+        chordal_poses=best,
+        f=best_cert.f,
+        certificate=best_cert,
+        certified=best_cert.certified,
+        escapes=escapes,
+        reason=reason,
+        stages=stages,
+        timings=timings,
+        graph=graph.with_poses(final.poses),
+        lower_bound=bound,
+        start_chi2=start_chi2,
+    )
+
+
+def _lm(cert):
+    return "> -eta" if cert.lambda_min is None else cert.lambda_min
+
+
+def _gauss_newton(graph, start):
+    """Gauss–Newton on χ² from ``start``; Levenberg–Marquardt when Gauss–Newton cannot proceed."""
+    try:
+        res = optimize(graph, start, method="gn")
+    except NotPositiveDefiniteError:
+        return optimize(graph, start, method="lm")
+    if not res.converged:
+        lm = optimize(graph, res.poses, method="lm")
+        if lm.chi2 < res.chi2:
+            return lm
+    return res
