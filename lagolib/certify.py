@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -60,7 +61,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .checks import check_bool, check_choice, check_int, check_real
-from .errors import NotPositiveDefiniteError, OptionError, OptionTypeError
+from .errors import GraphError, NotPositiveDefiniteError, OptionError, OptionTypeError
 from .gauss_newton import (
     LinearSystem,
     OptimizeResult,
@@ -72,7 +73,7 @@ from .gauss_newton import (
     optimize,
 )
 from .graph import PoseGraph, as_graph_poses, chi2
-from .lago import lago
+from .lago import RegularizationWarning, lago
 from .linalg import SparseCholesky
 from .metrics import sesync_parameters
 
@@ -96,8 +97,8 @@ __all__ = [
     "ETA",
 ]
 
-#: Relative tolerance of the certificate: ``lambda_min(S~) >= -ETA * mean(lambda)`` counts as
-#: positive semidefinite (see :func:`certify`).
+#: Relative tolerance of the certificate: ``lambda_min(S~) >= -ETA * mean|lambda|`` counts as
+#: positive semidefinite (see :func:`certify`, which also keeps it above rounding in ``M``).
 ETA = 1e-7
 
 
@@ -199,10 +200,27 @@ def chordal_problem(graph):
     Returns
     -------
     ChordalProblem
+
+    Raises
+    ------
+    GraphError
+        Fewer than 2 poses, or more than one connected component.
     """
     if not isinstance(graph, PoseGraph):
         raise OptionTypeError(
             f"chordal_problem: graph must be a PoseGraph; got {type(graph).__name__}"
+        )
+    if graph.n < 2:
+        raise GraphError(
+            f"chordal_problem: the graph has {graph.n} pose(s); certification needs at least 2"
+        )
+    count, labels = graph.components()
+    if count > 1:
+        lone = int(graph.ids[np.flatnonzero(labels != 0)[0]])
+        raise GraphError(
+            f"chordal_problem: the graph has {count} connected components (vertex id {lone} is "
+            "not connected to the first vertex); the chordal problem and its certificate are "
+            "defined per component — certify each one (PoseGraph.components gives the labels)"
         )
     kappa, tau = sesync_parameters(graph)
     z = graph.measurements
@@ -296,7 +314,8 @@ def data_matrix(problem):
             ).ravel(),  # kappa conj(b) b^T
         ]
     )
-    return sp.csr_matrix((vals, (rows, cols)), shape=(2 * n, 2 * n))
+    M = sp.csr_matrix((vals, (rows, cols)), shape=(2 * n, 2 * n))
+    return ((M + M.conj().T) * 0.5).tocsr()  # exactly Hermitian (duplicates summed in any order)
 
 
 def chordal_cost(problem, poses, *, per_edge=False):
@@ -731,10 +750,11 @@ def _smallest(factor, shift, k):
 def _pairs(lam):
     """One of each pair of equal eigenvalues of a complex matrix's real form (sorted input)."""
     out, i = [], 0
+    atol = 1e-9 * float(np.max(np.abs(lam))) if lam.size else 0.0
     while i < lam.size:
         out.append(lam[i])
-        scale = max(abs(lam[i]), 1e-300)
-        i += 2 if i + 1 < lam.size and abs(lam[i + 1] - lam[i]) <= 1e-6 * scale + 1e-14 else 1
+        same = i + 1 < lam.size and abs(lam[i + 1] - lam[i]) <= 1e-6 * abs(lam[i]) + atol
+        i += 2 if same else 1
     return np.array(out)
 
 
@@ -751,9 +771,13 @@ def certify(problem, poses, *, eta=None, eigenvalues=0):
     **Why a tolerance.**  ``S~`` is singular at a stationary point (``S~ z = 0``), so its smallest
     eigenvalue is 0 in exact arithmetic and ``±(rounding)`` in floating point; and the
     multipliers are read off a point the local solver reached only to ``tol``.  Both errors
-    scale with the multipliers, so ``eta = ETA * mean(lambda)`` (``ETA = 1e-7``): at a
+    scale with the multipliers, so ``eta = ETA * mean|lambda|`` (``ETA = 1e-7``): at a
     certified optimum of the benchmarks, ``lambda_min`` is 1e-13 to 1e-10 of that scale; at a
-    local minimum that is not global it is 1e-4 or larger.
+    local minimum that is not global it is 1e-4 or larger.  When the residuals vanish
+    (noiseless graphs, trees) so do the multipliers, and rounding in ``M`` sets the scale:
+    ``eta`` is never below ``1e-10`` times the mean rotation diagonal of ``M``.  The bound
+    accounts for the tolerance: a certified point's ``lower_bound`` is
+    ``sum(lambda) - n eta``.
 
     Parameters
     ----------
@@ -784,8 +808,10 @@ def certify(problem, poses, *, eta=None, eigenvalues=0):
     lam = np.sum(X[n:].conj() * MX[n:], axis=1).real  # lambda_i = Re(conj(z_i) (M x)_{n+i})
     rgrad = MX[n:] - lam[:, None] * X[n:]  # the gradient's component along the spheres
     gradient = float(max(np.max(np.abs(rgrad)), np.max(np.abs(MX[:n]))))
-    if eta is None:
-        eta = ETA * max(float(np.mean(np.abs(lam))), np.finfo(float).tiny)
+    if k > n:
+        raise OptionError(f"{where}: eigenvalues must be at most n = {n}; got {k}")
+    if eta is None:  # relative to the multipliers, and never below rounding in M
+        eta = ETA * max(float(np.mean(np.abs(lam))), 1e-3 * float(np.mean(p.M.diagonal()[n:].real)))
     else:
         eta = check_real(eta, "eta", where, minimum=0.0)
     factor = _ShiftedFactor(p, lam)
@@ -797,7 +823,7 @@ def certify(problem, poses, *, eta=None, eigenvalues=0):
         shift = _bracket(factor, eta, float(np.max(np.abs(lam))) + eta)
         eigvals, vec = _smallest(factor, shift, max(k, 1))
     lam_min = float(eigvals[0]) if eigvals.size else -eta
-    f = float(np.sum(X.conj() * MX).real)
+    f = lifted_cost(p, X)  # the sum of edge terms: x^H M x can cancel to a negative number
     bound = float(lam.sum()) + n * min(lam_min, 0.0)
     gap = max(f - bound, 0.0)
     return Certificate(
@@ -841,7 +867,8 @@ def lifted_cost(problem, X):
     """
     p = _problem(problem, "lifted_cost")
     X = _as_x(p, X, "lifted_cost", lifted=True)
-    return float(np.sum(X.conj() * (p.M @ X)).real)
+    X = X[:, None] if X.ndim == 1 else X
+    return sum(chordal_cost(p, X[:, c]) for c in range(X.shape[1]))
 
 
 class LiftedSystem:
@@ -915,7 +942,7 @@ class LiftedSystem:
             H = H + P.T @ (S @ P)
             b += P.T @ np.concatenate([MX[:, c].real, MX[:, c].imag])
         H = (H + H.T).tocsr()  # 2 sym(P^T S P)
-        return H, 2.0 * b, float(np.sum(X.conj() * MX).real)
+        return H, 2.0 * b, lifted_cost(p, X)
 
     def objective(self, X):
         return lifted_cost(self.problem, X)
@@ -1053,7 +1080,9 @@ class SolveResult:
     Attributes
     ----------
     poses : ndarray, shape (n, 3)
-        The χ² (lecture notes') optimum reached by Gauss–Newton from the best chordal point.
+        The χ² (lecture notes') optimum reached by Gauss–Newton from the best chordal point
+        (step 5 of :func:`solve`).  The certificate is about the chordal cost: that this is
+        also χ²'s global minimum is likely, not proven.
     chi2 : float
         Its χ².
     chordal_poses : ndarray, shape (n, 3)
@@ -1110,12 +1139,18 @@ class SolveResult:
 def solve(graph, initial=None, *, tree=None, max_escapes=10, eta=None, verbose=False):
     """The pipeline to call: LAGO → Gauss–Newton → chordal polish → certificate (→ escape).
 
-    1. ``initial``, or LAGO (:func:`lagolib.lago_solve`) with ``tree`` (default: LAGO's);
+    1. ``initial``, or LAGO (:func:`lagolib.lago_solve`) with ``tree`` (default: LAGO's); a
+       :class:`lagolib.RegularizationWarning` is not raised but noted in the LAGO stage
+       (``"warning"``) — the certificate decides what the warning can only suspect;
     2. Gauss–Newton on χ² (:func:`lagolib.optimize`, LM if Gauss–Newton fails);
     3. :func:`refine` — the chordal cost's local minimum next to it;
-    4. :func:`certify`; if not certified, :func:`escape`, :func:`refine` and :func:`certify`
-       again, at most ``max_escapes`` times;
-    5. Gauss–Newton on χ² from the best chordal point (when an escape moved it).
+    4. :func:`certify`; if not certified, climb the Riemannian staircase: :func:`escape` to
+       rank ``r + 1``, :func:`refine_lifted`, certify the relaxation, round to poses
+       (:func:`round_solution`), :func:`refine` and :func:`certify` — until certified, until a
+       certified relaxation is not rank one (not tight: the gap is then the bound), or
+       ``max_escapes`` times;
+    5. Gauss–Newton on χ² from the best chordal point — the answer, in the basin the
+       certificate vouches for (the polish or an escape may have left the first one's).
 
     Parameters
     ----------
@@ -1142,6 +1177,7 @@ def solve(graph, initial=None, *, tree=None, max_escapes=10, eta=None, verbose=F
         raise OptionTypeError(f"{where}: graph must be a PoseGraph; got {type(graph).__name__}")
     max_escapes = check_int(max_escapes, "max_escapes", where, minimum=0)
     verbose = check_bool(verbose, "verbose", where)
+    p = chordal_problem(graph)  # checks n >= 2 and connectivity before any work
     stages, timings = (
         [],
         dict.fromkeys(("lago", "gauss_newton", "refine", "certify", "escape"), 0.0),
@@ -1159,8 +1195,16 @@ def solve(graph, initial=None, *, tree=None, max_escapes=10, eta=None, verbose=F
     if initial is None:
         t = time.perf_counter()
         kw = {} if tree is None else {"tree": tree}
-        start = lago(graph, **kw).poses
-        record("LAGO", "lago", time.perf_counter() - t, chi2=chi2(graph, start))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", RegularizationWarning)
+            start = lago(graph, **kw).poses
+        for w in caught:  # the certificate settles what the warning can only suspect
+            if not issubclass(w.category, RegularizationWarning):  # pragma: no cover
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        info = {"chi2": chi2(graph, start)}
+        if any(issubclass(w.category, RegularizationWarning) for w in caught):
+            info["warning"] = "LAGO's regularization may be wrong (RegularizationWarning)"
+        record("LAGO", "lago", time.perf_counter() - t, **info)
     else:
         start = as_graph_poses(graph, initial, "initial", "initial guess")
     start_chi2 = chi2(graph, start)
@@ -1168,7 +1212,6 @@ def solve(graph, initial=None, *, tree=None, max_escapes=10, eta=None, verbose=F
     record(
         "Gauss-Newton", "gauss_newton", gn.timings["total"], chi2=gn.chi2, iterations=gn.iterations
     )
-    p = chordal_problem(graph)
     ref = refine(p, gn.poses)
     record("chordal polish", "refine", ref.timings["total"], f=ref.chi2, iterations=ref.iterations)
     cert = certify(p, ref.poses, eta=eta)
@@ -1222,18 +1265,16 @@ def solve(graph, initial=None, *, tree=None, max_escapes=10, eta=None, verbose=F
                 "solution is not rank one (the relaxation is not tight); the gap is the bound"
             )
             break
-    final = gn
-    if escapes:
-        final = _gauss_newton(graph, best)
-        record(
-            "Gauss-Newton",
-            "gauss_newton",
-            final.timings["total"],
-            chi2=final.chi2,
-            iterations=final.iterations,
-        )
-        if gn.chi2 < final.chi2:  # pragma: no cover - the certified basin is lower in every test
-            final = gn
+    # Gauss-Newton on chi2 from the chordal point that was certified: the polish (and any
+    # escape) may have left the basin of the first Gauss-Newton result
+    final = _gauss_newton(graph, best)
+    record(
+        "Gauss-Newton",
+        "gauss_newton",
+        final.timings["total"],
+        chi2=final.chi2,
+        iterations=final.iterations,
+    )
     timings["total"] = time.perf_counter() - t_start
     return SolveResult(
         poses=final.poses,

@@ -4,8 +4,11 @@
 
     lagolib info FILE                  counts, connectivity, odometric chain, regularization per
                                        spanning tree, information isotropy, chi2 at the file's poses
-    lagolib solve FILE --method M -o OUT.g2o [--plot OUT.png] [--progress]
+    lagolib solve FILE --method M -o OUT.g2o [--plot OUT.png] [--progress] [--certify]
                                        M in lago, gn, lm, lago+gn, sgd; writes the solved graph
+    lagolib certify FILE [--initial odometry|lago] [--max-escapes N] [-o OUT.g2o]
+                                       is it the global optimum? LAGO -> Gauss-Newton -> chordal
+                                       polish -> certificate (-> escape), :func:`lagolib.certify.solve`
     lagolib plot FILE [--poses P.txt] [--ellipses] -o OUT.png
                                        odometric edges solid, loop closures dotted (Carlone Fig. 1)
     lagolib datasets                   the registered benchmarks and where each one is
@@ -18,6 +21,8 @@ Errors print one line, ``lagolib: error: ...``, on stderr: the exit status is 2 
 (an unknown option, method or value) and 1 for anything else (a missing file, a parse error — the
 message names ``file:line`` —, a graph lagolib cannot solve).  ``--debug`` (anywhere on the
 command line) adds the traceback.  An interrupt (Ctrl-C) exits with 130, without a traceback.
+``lagolib certify`` and ``lagolib solve --certify`` exit with 3 (:data:`NOT_CERTIFIED`) when
+everything ran but the poses could not be certified globally optimal, so that scripts can tell.
 Warnings (e.g. :class:`lagolib.lago.RegularizationWarning`) print one line each,
 ``lagolib: warning: ...``.
 """
@@ -26,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import inspect
 import io
 import json
 import os
@@ -38,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import book, datasets, se2, topology
+from . import book, certify, datasets, se2, topology
 from .errors import GraphError, LagolibError, LagolibWarning, OptionError, OptionTypeError
 from .gauss_newton import optimize
 from .graph import ERRORS, chi2, vertex_rows
@@ -46,12 +52,19 @@ from .io import detect_format, read, read_poses, write
 from .lago import lago, regularize
 from .sgd import sgd
 
-__all__ = ["main", "COMMANDS", "METHODS"]
+__all__ = ["main", "COMMANDS", "METHODS", "INITIALS", "NOT_CERTIFIED"]
 
 #: Commands handed over whole to another module's ``main(argv)``.
 COMMANDS = {"book": book.main}
 #: ``lagolib solve --method`` choices.
 METHODS = ("lago", "gn", "lm", "lago+gn", "sgd")
+#: ``lagolib certify --initial`` choices: the file's poses, or LAGO's.
+INITIALS = ("odometry", "lago")
+#: Exit status of ``lagolib certify`` and ``lagolib solve --certify`` when the run succeeded but
+#: the poses are not certified globally optimal (a local minimum, or the escape budget ran out).
+NOT_CERTIFIED = 3
+#: ``lagolib certify --max-escapes`` default: :func:`lagolib.certify.solve`'s.
+_MAX_ESCAPES = inspect.signature(certify.solve).parameters["max_escapes"].default
 #: Chords whose cycle sum is closer than this many turns to ±½ are reported as unreliable.
 MARGIN = 0.1
 _GRAPH_SUFFIXES = {".g2o": "g2o", ".graph": "TORO"}
@@ -108,6 +121,26 @@ def _dpi(text):
         raise argparse.ArgumentTypeError(
             f"expected a resolution from {lo} to {hi} dpi; got {value}"
         )
+    return value
+
+
+def _nonnegative_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer; got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer; got {value}")
+    return value
+
+
+def _nonnegative_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative number; got {text!r}") from None
+    if not (np.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"expected a finite non-negative number; got {text!r}")
     return value
 
 
@@ -453,6 +486,8 @@ def _cmd_solve(args):
     output = _output_path(args.output, _GRAPH_SUFFIXES, "-o", "solve")
     image = _output_path(args.plot, _image_kinds(), "--plot", "solve") if args.plot else None
     path, graph, has_vertices = _load(args.file, args.ignore_unknown)
+    if args.certify:
+        _check_certifiable(graph, path)
     sink = sys.stderr if args.progress else None
     before = chi2(graph, error=args.error)
     t0 = time.perf_counter()
@@ -488,6 +523,8 @@ def _cmd_solve(args):
             LagolibWarning,
             stacklevel=1,
         )
+    # the certificate is computed before anything is written: a failure leaves no OUT behind
+    checked = _certify_poses(graph, poses, sink, t0) if args.certify else None
     if image is not None:  # drawn first: a failing --plot leaves no OUT behind either
         title = f"{Path(path).name}: {args.method}, chi2 {after:.6g}"
         try:
@@ -496,13 +533,188 @@ def _cmd_solve(args):
             raise LagolibError(
                 f"--plot {image}: cannot write it ({exc.strerror or exc}); nothing was written"
             ) from exc
-    write(solved, output)
+    _write_solved(solved, output)
     wrote = f"wrote {output}" + (f" and {image}" if image else "")
     print(
         f"{args.method}: chi2 {before:.10g} -> {after:.10g} ({args.error}), {iterations} "
         f"iterations, {seconds:.3f} s{note}; {wrote}"
     )
-    return 0
+    if checked is None:
+        return 0
+    ref, cert = checked
+    lines = _certificate_lines(cert, cert.f, cert.lower_bound)
+    lines[0] += f" (the chordal minimum next to the solved poses: {ref.iterations} Newton steps)"
+    print("\n".join(lines))
+    return 0 if cert.certified else NOT_CERTIFIED
+
+
+# ----------------------------------------------------------------------------- certify
+def _check_certifiable(graph, path):
+    """A certificate needs 2 or more poses in one connected graph: say so before any work."""
+    if graph.n < 2:
+        raise GraphError(
+            f"{path}: has {graph.n} pose(s); a certificate of global optimality needs at least 2 "
+            "poses joined by edges"
+        )
+    count, labels = graph.components()
+    if count > 1:
+        sizes = np.sort(np.bincount(labels))[::-1]
+        shown = ", ".join(map(str, sizes[:6].tolist())) + (", ..." if count > 6 else "")
+        raise GraphError(
+            f"{path}: the graph is not connected: {count} components (sizes {shown}); the "
+            "certificate, like LAGO, needs a connected graph — keep the largest component or add "
+            "the missing edges ('lagolib info' names the gaps)"
+        )
+
+
+def _value(v):
+    """A stage's or a certificate's value as printed: yes/no, 10 significant digits, or as is."""
+    if isinstance(v, bool | np.bool_):
+        return "yes" if v else "no"
+    if isinstance(v, float | np.floating):
+        return f"{float(v):.10g}"
+    return str(v)
+
+
+def _stage_line(stage):
+    """One line of :attr:`lagolib.certify.SolveResult.stages`: name, milliseconds, numbers."""
+    info = "  ".join(f"{k} {_value(v)}" for k, v in stage.items() if k not in ("stage", "seconds"))
+    return f"  {stage['stage']:<26s}{stage['seconds'] * 1e3:9.1f} ms  {info}"
+
+
+def _certificate_lines(cert, f, lower_bound, lambda_min=None):
+    """The lines both ``certify`` and ``solve --certify`` print: chordal f, certified, λ_min,
+    the lower bound and the gap.  ``lambda_min``: a computed value to print instead of the
+    certificate's (None: the certificate's, or "> -eta" when it computed none)."""
+    gap = max(f - lower_bound, 0.0)
+    relative = gap / f if f > 0 else 0.0
+    if cert.certified:
+        verdict = (
+            f"yes: a global minimum of the chordal cost f (lambda_min(S~) >= -eta, eta "
+            f"{cert.eta:.3g})"
+        )
+    else:
+        verdict = (
+            f"no: lambda_min(S~) < -eta (eta {cert.eta:.3g}); a global minimum may be lower, by "
+            "at most the gap"
+        )
+    lam = cert.lambda_min if lambda_min is None else lambda_min
+    return [
+        f"chordal f         {f:.10g}",
+        f"certified         {verdict}",
+        f"lambda_min        {'> -eta' if lam is None else format(lam, '.10g')}",
+        f"lower bound       {lower_bound:.10g} (on f at any poses: the global minimum is in "
+        "[bound, f])",
+        f"gap               {gap:.6g} (relative {relative:.3g})",
+    ]
+
+
+def _write_solved(solved, output):
+    """Write the solved graph (its poses, the file's edges): ``solve -o`` and ``certify -o``."""
+    write(solved, output)
+
+
+def _certify_poses(graph, poses, sink, t0):
+    """``solve --certify``: polish the chordal cost from ``poses`` and certify the minimum there.
+
+    Returns ``(refine result, Certificate)``; ``poses`` (what ``-o`` writes) are not changed.
+    """
+    problem = certify.chordal_problem(graph)
+    ref = certify.refine(problem, poses)
+    cert = certify.certify(problem, ref.poses)
+    if sink is not None:
+        sink.write(
+            f"[certify] chordal polish: f {ref.chi2:.10g}, {ref.iterations} iterations, "
+            f"{ref.timings['total'] * 1e3:.1f} ms  t {time.perf_counter() - t0:.3f} s\n"
+            f"[certify] certificate: certified {_value(cert.certified)}, lambda_min "
+            f"{'> -eta' if cert.lambda_min is None else _value(cert.lambda_min)}, "
+            f"{cert.seconds * 1e3:.1f} ms  t {time.perf_counter() - t0:.3f} s\n"
+        )
+        sink.flush()
+    return ref, cert
+
+
+def _start_line(args, graph, has_vertices, res):
+    if args.initial == "odometry":
+        where = "the file's poses" if has_vertices else "the odometry guess (no vertex lines)"
+    else:
+        where = f"LAGO, spanning tree {args.tree or 'min_uncertainty'}"
+    return f"start             {where}: chi2 {res.start_chi2:.10g}"
+
+
+def _cmd_certify(args):
+    if args.tree is not None and args.initial == "odometry":
+        raise _UsageError(
+            "certify: --tree chooses LAGO's spanning tree; it does not apply to --initial odometry"
+        )
+    output = _output_path(args.output, _GRAPH_SUFFIXES, "-o", "certify") if args.output else None
+    path, graph, has_vertices = _load(args.file, args.ignore_unknown)
+    _check_certifiable(graph, path)
+    if args.eigenvalues is not None and args.eigenvalues > graph.n:
+        raise _UsageError(
+            f"certify: --eigenvalues {args.eigenvalues}: S~ has {graph.n} eigenvalues (one per "
+            f"pose of {path}); ask for at most {graph.n}"
+        )
+    sink = sys.stderr if args.progress else None
+    t0 = time.perf_counter()
+    if sink is not None:
+        start = "the file's poses" if args.initial == "odometry" else "LAGO"
+        sink.write(f"[certify] start: {start}, at most {args.max_escapes} escape(s)\n")
+        sink.flush()
+    stamped = _Stamped(sink, "[certify] ", t0) if sink is not None else None
+    with contextlib.redirect_stdout(stamped) if stamped else contextlib.nullcontext():
+        res = certify.solve(
+            graph,
+            graph.poses if args.initial == "odometry" else None,
+            tree=args.tree,
+            max_escapes=args.max_escapes,
+            eta=args.eta,
+            verbose=sink is not None,
+        )
+    eigenvalues, seconds = None, 0.0
+    if args.eigenvalues:
+        problem = certify.chordal_problem(graph)
+        extra = certify.certify(
+            problem, res.chordal_poses, eta=args.eta, eigenvalues=args.eigenvalues
+        )
+        eigenvalues, seconds = extra.eigenvalues, extra.seconds
+        if sink is not None:
+            sink.write(
+                f"[certify] {eigenvalues.size} smallest eigenvalue(s) of S~  {seconds * 1e3:.1f} "
+                f"ms  t {time.perf_counter() - t0:.3f} s\n"
+            )
+            sink.flush()
+    odometric = int(graph.odometric.sum())
+    lines = [
+        f"file              {path} ({detect_format(path)})",
+        f"graph             {graph.n} poses, {graph.m} edges ({odometric} odometric, "
+        f"{graph.m - odometric} loop closures)",
+        _start_line(args, graph, has_vertices, res),
+        "stages            (chi2: g2o's t2v chi2; f: the chordal cost)",
+        *map(_stage_line, res.stages),
+        f"chi2              {res.chi2:.10g} (t2v, g2o's chi2, at the poses -o writes)",
+        *_certificate_lines(
+            res.certificate,
+            res.f,
+            res.lower_bound,
+            None if eigenvalues is None or not eigenvalues.size else float(eigenvalues[0]),
+        ),
+        f"escapes           {res.escapes} (at most {args.max_escapes})",
+        f"reason            {res.reason}",
+        f"time              {res.timings['total']:.3f} s"
+        + (f" (+ {seconds:.3f} s for the eigenvalues)" if eigenvalues is not None else ""),
+    ]
+    if eigenvalues is not None:
+        lines.append(
+            f"eigenvalues       the {eigenvalues.size} smallest of S~ (the reduced certificate "
+            "matrix; lambda_1 ~ 0: S~ z = 0 at a stationary point)"
+        )
+        lines += [f"  lambda_{k:<8d}{lam:.10g}" for k, lam in enumerate(eigenvalues, start=1)]
+    if output is not None:
+        _write_solved(res.graph, output)
+        lines.append(f"wrote             {output}")
+    print("\n".join(lines))
+    return 0 if res.certified else NOT_CERTIFIED
 
 
 # ----------------------------------------------------------------------------- plot
@@ -664,13 +876,15 @@ def _parser():
         formatter_class=_Formatter,
         description=(
             "Planar pose-graph SLAM from the shell: inspect, solve (LAGO, Gauss-Newton, "
-            "Levenberg-Marquardt, SGD) and plot g2o/TORO files.\n\n"
+            "Levenberg-Marquardt, SGD), certify global optimality and plot g2o/TORO files.\n\n"
             "examples:\n"
             "  lagolib info intel\n"
             "  lagolib solve graph.g2o --method lago+gn --progress -o solved.g2o --plot solved.png\n"
+            "  lagolib certify mit --initial odometry\n"
             "  lagolib plot solved.g2o --ellipses -o solved.png\n"
             "  lagolib datasets\n\n"
-            "exit status: 0 ok, 1 error, 2 usage error, 130 interrupted"
+            f"exit status: 0 ok, 1 error, 2 usage error, {NOT_CERTIFIED} not certified (certify, "
+            "solve --certify), 130 interrupted"
         ),
     )
     top.add_argument("--debug", action="store_true", help="show the traceback of an error")
@@ -707,9 +921,14 @@ def _parser():
             "  lago+gn  Gauss-Newton from LAGO's poses\n"
             "  sgd      stochastic gradient descent on a tree parameterization (TORO-style)\n"
             "--progress prints one line per iteration on stderr (chi2, relative decrease, max\n"
-            "|dx|, elapsed time); one summary line goes to stdout.\n\n"
-            "example:\n"
-            "  lagolib solve intel --method lago+gn --progress -o intel_solved.g2o"
+            "|dx|, elapsed time); one summary line goes to stdout.\n"
+            "--certify then polishes the chordal cost from the solved poses and tests the\n"
+            "certificate of global optimality (as 'lagolib certify' does, without escaping):\n"
+            f"the certificate's lines follow the summary; exit status {NOT_CERTIFIED} when not "
+            "certified.\n\n"
+            "examples:\n"
+            "  lagolib solve intel --method lago+gn --progress -o intel_solved.g2o\n"
+            "  lagolib solve mit --method gn --certify -o mit_gn.g2o"
         ),
     )
     p.add_argument("file", metavar="FILE", help=file_help)
@@ -742,7 +961,78 @@ def _parser():
     p.add_argument("--plot", metavar="PNG", help="also draw the solved graph into this image")
     p.add_argument("--dpi", type=_dpi, default=_DPI, help="resolution of --plot (10 to 2000)")
     p.add_argument("--progress", action="store_true", help="per-iteration lines on stderr")
+    p.add_argument(
+        "--certify",
+        action="store_true",
+        help="also certify: polish the chordal cost from the solved poses and test the "
+        f"certificate; exit status {NOT_CERTIFIED} when not certified (OUT is the same)",
+    )
     p.set_defaults(func=_cmd_solve)
+
+    p = sub.add_parser(
+        "certify",
+        parents=[debug, reading],
+        formatter_class=_Formatter,
+        help="is it the global optimum? solve, certify, escape local minima",
+        description=(
+            "Solve a pose graph and certify that the answer is the global optimum\n"
+            "(lagolib.certify.solve; Carlone et al., TRO 2016; SE-Sync, Rosen et al. 2019):\n"
+            "  LAGO (or the file's poses, --initial odometry) -> Gauss-Newton on chi2\n"
+            "  -> Newton polish of the chordal cost f -> the dual certificate: certified when\n"
+            "     lambda_min(S~) >= -eta (a sparse factorization of S~ + eta I)\n"
+            "  -> if not: escape along the eigenvector of lambda_min (one rank up the\n"
+            "     Riemannian staircase), polish, round, certify again, at most --max-escapes\n"
+            "     times -> Gauss-Newton on chi2 from the best chordal minimum.\n"
+            "Prints the stages, chi2, f, the certificate, a lower bound on the global minimum\n"
+            "of f, the gap f - bound, the escapes and why it stopped.  --progress prints\n"
+            "the stages on stderr as they end; the summary goes to stdout.  -o writes the\n"
+            "chi2 poses (as 'lagolib solve -o' does), certified or not.\n\n"
+            f"exit status: 0 certified globally optimal; {NOT_CERTIFIED} ran, but NOT certified\n"
+            "(a local minimum the escape budget did not leave, or a relaxation that is not\n"
+            "tight); 1 error; 2 usage error.\n\n"
+            "examples:\n"
+            "  lagolib certify mit --initial odometry\n"
+            "  lagolib certify intel --eigenvalues 3 --progress -o intel_optimal.g2o"
+        ),
+    )
+    p.add_argument("file", metavar="FILE", help=file_help)
+    p.add_argument(
+        "--initial",
+        choices=INITIALS,
+        default="lago",
+        help="start from the file's poses (odometry) or from LAGO's",
+    )
+    p.add_argument(
+        "--tree",
+        choices=topology.TREES,
+        default=None,
+        help="LAGO's spanning tree (default: min_uncertainty)",
+    )
+    p.add_argument(
+        "--max-escapes",
+        type=_nonnegative_int,
+        default=_MAX_ESCAPES,
+        metavar="N",
+        help="at most N escapes from a point the certificate rejects (0: certify only)",
+    )
+    p.add_argument(
+        "--eta",
+        type=_nonnegative_float,
+        default=None,
+        metavar="X",
+        help=f"the certificate's tolerance, lambda_min(S~) >= -X (default: {certify.ETA:g} x "
+        "the mean Lagrange multiplier)",
+    )
+    p.add_argument(
+        "--eigenvalues",
+        type=_positive_int,
+        default=None,
+        metavar="K",
+        help="also compute and print the K smallest eigenvalues of S~",
+    )
+    p.add_argument("-o", "--output", metavar="OUT", help="write the solved graph (.g2o or .graph)")
+    p.add_argument("--progress", action="store_true", help="one line per stage on stderr")
+    p.set_defaults(func=_cmd_certify)
 
     p = sub.add_parser(
         "plot",
@@ -821,7 +1111,7 @@ def _dispatch(argv):
     parser = _parser()
     args = parser.parse_args(argv)
     if args.command is None:
-        raise _UsageError("a command is required (info, solve, plot, datasets, book)")
+        raise _UsageError("a command is required (info, solve, certify, plot, datasets, book)")
     return args.func(args)
 
 
@@ -846,7 +1136,9 @@ def main(argv=None) -> int:
         if debug:
             traceback.print_exc()
         command = next((a for a in argv if not a.startswith("-")), None)
-        hint = f"lagolib {command} --help" if command in ("info", "solve", "plot") else None
+        hint = (
+            f"lagolib {command} --help" if command in ("info", "solve", "certify", "plot") else None
+        )
         hint = hint or "lagolib --help"
         print(f"lagolib: error: {_one_line(exc)} (see '{hint}')", file=sys.stderr)
         return 2

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import lagolib
-from lagolib import cli, datasets, se2, simulate, topology
+from lagolib import certify, cli, datasets, se2, simulate, topology
 from lagolib.gauss_newton import optimize
 from lagolib.lago import lago, regularize
 
@@ -417,6 +417,223 @@ def test_solve_writes_toro_for_dot_graph(aniso, capsys, tmp_path):
     np.testing.assert_allclose(back.information, g.information, rtol=0, atol=1e-12 * 1e4)
 
 
+# ----------------------------------------------------------------------------- certify
+def _field(out, label):
+    """The first word after ``label`` at the start of a summary line of ``certify``."""
+    m = re.search(rf"^{re.escape(label)}\s+(\S+)", out, re.M)
+    assert m, (label, out)
+    return m.group(1)
+
+
+def _number(out, label):
+    return float(_field(out, label))
+
+
+def _stage_names(out):
+    """The stage names of the ``stages`` block of ``certify`` (lines ``  NAME  12.3 ms  ...``)."""
+    return re.findall(r"^  (\S.*?)\s+\d+\.\d ms  ", out, re.M)
+
+
+@script
+def test_script_certify_an_example_prints_the_librarys_numbers(tmp_path):
+    g = datasets.example("square_loop").graph
+    res = certify.solve(g)
+    extra = certify.certify(certify.chordal_problem(g), res.chordal_poses, eigenvalues=3)
+    assert res.certified and res.escapes == 0  # the library's verdict the CLI must report
+    out_path = tmp_path / "optimal.g2o"
+    proc = _run("certify", "square_loop", "--eigenvalues", 3, "-o", out_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""  # no --progress: nothing on stderr
+    out = proc.stdout
+    assert re.search(rf"^graph\s+{g.n} poses, {g.m} edges \(", out, re.M), out
+    start = re.search(r"^start\s+LAGO, spanning tree min_uncertainty: chi2 (\S+)$", out, re.M)
+    assert start and float(start.group(1)) == pytest.approx(res.start_chi2, rel=1e-9)
+    assert _stage_names(out) == [s["stage"] for s in res.stages]
+    assert _number(out, "chi2") == pytest.approx(res.chi2, rel=1e-9)
+    assert _number(out, "chordal f") == pytest.approx(res.f, rel=1e-9)
+    assert _field(out, "certified") == "yes:"
+    assert _number(out, "lambda_min") == pytest.approx(extra.eigenvalues[0], rel=1e-6, abs=1e-9)
+    assert _number(out, "lower bound") == pytest.approx(res.lower_bound, rel=1e-9)
+    assert _number(out, "gap") == pytest.approx(res.gap, rel=1e-5)
+    assert res.lower_bound <= res.f
+    assert _field(out, "escapes") == "0" and _field(out, "reason") == "certified"
+    for k, lam in enumerate(extra.eigenvalues, start=1):
+        assert float(_field(out, f"  lambda_{k}")) == pytest.approx(lam, rel=1e-6, abs=1e-9)
+    assert extra.eigenvalues.size == 3 and extra.eigenvalues[-1] > 1.0  # a gap above 0
+    assert _field(out, "wrote") == str(out_path)
+    back = lagolib.read(out_path)
+    np.testing.assert_allclose(back.poses, res.poses, rtol=0, atol=1e-9)
+    assert lagolib.chi2(back) == pytest.approx(res.chi2, rel=1e-9)
+
+
+@script
+def test_script_certify_mit_from_odometry_escapes_to_the_certified_optimum(benchmark):
+    """GN from the file's poses stops at χ² 770.66 (a local minimum the certificate rejects); one
+    escape reaches the certified optimum χ² 41.163, chordal f 40.2407 (SE-Sync's Table 1)."""
+    proc = _run("certify", benchmark("mit"), "--initial", "odometry", "--progress")
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout
+    assert _number(out, "chi2") == pytest.approx(41.163, abs=1e-3)
+    assert _number(out, "chordal f") == pytest.approx(40.2407, abs=5e-5)
+    assert _field(out, "certified") == "yes:"
+    assert _field(out, "escapes") == "1"
+    assert re.search(r"^reason\s+certified after 1 escape\(s\), through rank 2$", out, re.M)
+    assert _number(out, "lower bound") <= _number(out, "chordal f")
+    names = _stage_names(out)
+    assert names[:3] == ["Gauss-Newton", "chordal polish", "certificate"]
+    assert "escape to rank 2" in names
+    first = re.search(r"^  certificate\s+\S+ ms  certified no  lambda_min (\S+)$", out, re.M)
+    assert first and float(first.group(1)) < 0  # the GN local minimum: rejected
+    gn = re.search(r"^  Gauss-Newton\s+\S+ ms  chi2 (\S+)", out, re.M)
+    assert float(gn.group(1)) == pytest.approx(770.66, abs=0.01)
+    # --progress: the same stages on stderr as they end, stamped; stdout holds only the summary
+    err = proc.stderr.strip().splitlines()
+    assert err[0] == "[certify] start: the file's poses, at most 10 escape(s)"
+    stamped = [ln for ln in err[1:] if re.search(r"  t \d+\.\d{3} s$", ln)]
+    assert len(stamped) == len(err) - 1 == len(names)
+    for line, name in zip(stamped, names):
+        assert line.startswith(f"[certify] {name} ")
+    assert "[certify]" not in out and "Traceback" not in proc.stderr
+
+
+def test_certify_mit_without_escapes_is_not_certified(benchmark, capsys, tmp_path):
+    out_path = tmp_path / "local.g2o"
+    rc, out, err = _call(
+        capsys,
+        "certify",
+        benchmark("mit"),
+        "--initial",
+        "odometry",
+        "--max-escapes",
+        0,
+        "-o",
+        out_path,
+    )
+    assert rc == cli.NOT_CERTIFIED == 3, err
+    assert err == ""
+    assert _field(out, "certified") == "no:"
+    f, bound = _number(out, "chordal f"), _number(out, "lower bound")
+    assert f == pytest.approx(749.371, abs=1e-3)  # the chordal minimum next to GN's 770.66
+    assert _number(out, "chi2") == pytest.approx(770.66, abs=0.01)
+    assert bound < f
+    assert _number(out, "lambda_min") < 0
+    assert _number(out, "gap") == pytest.approx(f - bound, rel=1e-5)
+    assert _field(out, "escapes") == "0"
+    assert "not certified: the budget of max_escapes=0 ran out" in out
+    assert "escape to rank" not in out
+    # -o writes the chi2 poses, certified or not
+    assert lagolib.chi2(lagolib.read(out_path)) == pytest.approx(_number(out, "chi2"), rel=1e-9)
+
+
+def test_solve_certify_prints_the_certificate_and_writes_the_same_file(capsys, tmp_path):
+    g = datasets.example("grid100").graph
+    plain, checked = tmp_path / "plain.g2o", tmp_path / "checked.g2o"
+    rc, out_plain, _ = _call(capsys, "solve", "grid100", "-m", "lago+gn", "-o", plain)
+    assert rc == 0
+    rc, out, err = _call(capsys, "solve", "grid100", "-m", "lago+gn", "--certify", "-o", checked)
+    assert rc == 0, err
+    assert checked.read_bytes() == plain.read_bytes()  # --certify does not change the output
+    # the library's numbers: polish the chordal cost from the solved poses, then certify
+    solved = lagolib.read(checked)
+    problem = certify.chordal_problem(g)
+    ref = certify.refine(problem, solved.poses)
+    cert = certify.certify(problem, ref.poses)
+    assert cert.certified
+    lines = out.strip().splitlines()
+    timeless = [re.sub(r"\d+\.\d{3} s", "T s", text) for text in (lines[0], out_plain.strip())]
+    assert timeless[0] == timeless[1].replace(str(plain), str(checked))  # the same summary line
+    assert _number(out, "chordal f") == pytest.approx(cert.f, rel=1e-9)
+    assert f"{ref.iterations} Newton steps" in out
+    assert _field(out, "certified") == "yes:"
+    assert _field(out, "lambda_min") == ">"  # "> -eta": certified by the factorization alone
+    assert _number(out, "lower bound") == pytest.approx(cert.lower_bound, rel=1e-9)
+    assert cert.lower_bound <= cert.f
+    assert _number(out, "gap") == pytest.approx(cert.gap, rel=1e-5)
+    assert err == ""
+
+
+def test_solve_certify_a_local_minimum_exits_3(benchmark, capsys, tmp_path):
+    """Gauss–Newton from MIT's file poses: a local minimum; the file is written all the same."""
+    plain, checked = tmp_path / "plain.g2o", tmp_path / "checked.g2o"
+    assert _call(capsys, "solve", benchmark("mit"), "-m", "gn", "-o", plain)[0] == 0
+    rc, out, err = _call(
+        capsys, "solve", benchmark("mit"), "-m", "gn", "--certify", "--progress", "-o", checked
+    )
+    assert rc == cli.NOT_CERTIFIED, err
+    assert checked.read_bytes() == plain.read_bytes()
+    assert _field(out, "certified") == "no:"
+    assert _number(out, "lambda_min") < 0
+    assert _number(out, "lower bound") < _number(out, "chordal f")
+    assert re.search(r"^\[certify\] certificate: certified no, lambda_min -\S+, ", err, re.M)
+
+
+@pytest.mark.parametrize(
+    ("args", "status", "message"),
+    [
+        (("--max-escapes", "-1"), 2, "argument --max-escapes: expected a non-negative integer"),
+        (("--max-escapes", "1.5"), 2, "argument --max-escapes: expected a non-negative integer"),
+        (("--eta", "nan"), 2, "argument --eta: expected a finite non-negative number; got 'nan'"),
+        (("--eta", "-0.001"), 2, "argument --eta: expected a finite non-negative number"),
+        (("--eigenvalues", "x"), 2, "argument --eigenvalues: expected a positive integer; got 'x'"),
+        (("--eigenvalues", "0"), 2, "argument --eigenvalues: expected a positive integer; got 0"),
+        (("--eigenvalues", "101"), 2, "--eigenvalues 101: S~ has 100 eigenvalues"),
+        (("--initial", "gn"), 2, "argument --initial: invalid choice: 'gn'"),
+        (("--initial", "odometry", "--tree", "bfs"), 2, "--tree chooses LAGO's spanning tree"),
+        (("-o", "{tmp}/o.txt"), 2, "-o {tmp}/o.txt: cannot tell the format"),
+        (("--method", "gn"), 2, "unrecognized arguments: --method gn"),
+    ],
+)
+def test_certify_bad_options_name_the_option(capsys, tmp_path, args, status, message):
+    rc, out, err = _call(capsys, "certify", "grid100", *(a.format(tmp=tmp_path) for a in args))
+    assert rc == status, err
+    assert out == ""
+    line = _one_error_line(err)
+    assert message.format(tmp=tmp_path) in line
+    assert line.endswith("(see 'lagolib certify --help')")
+
+
+@pytest.mark.parametrize(
+    ("command", "graph", "message"),
+    [
+        (("certify",), "one", "has 1 pose(s); a certificate of global optimality needs at least 2"),
+        (("solve", "--certify", "-o", "{tmp}/o.g2o"), "one", "needs at least 2 poses"),
+        (("certify",), "split", "the graph is not connected: 2 components (sizes 2, 2)"),
+        (("certify", "--initial", "odometry"), "split", "the graph is not connected"),
+        (("solve", "-m", "lm", "--certify", "-o", "{tmp}/o.g2o"), "split", "is not connected"),
+    ],
+    ids=["certify-1-pose", "solve-1-pose", "certify-split", "certify-split-odo", "solve-split"],
+)
+def test_certify_graphs_it_cannot_certify_get_a_lagolib_error(
+    capsys, tmp_path, command, graph, message
+):
+    files = {
+        "one": "VERTEX_SE2 0 0 0 0\n",
+        "split": "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 2 2 0 0\n"
+        "VERTEX_SE2 3 3 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\nEDGE_SE2 2 3 1 0 0 1 0 0 1 0 1\n",
+    }
+    path = tmp_path / f"{graph}.g2o"
+    path.write_text(files[graph])
+    argv = [command[0], path, *(a.format(tmp=tmp_path) for a in command[1:])]
+    rc, out, err = _call(capsys, *argv)
+    assert rc == 1, err
+    assert out == ""
+    line = _one_error_line(err)
+    assert line.startswith(f"lagolib: error: {path}: ") and message in line
+    assert not (tmp_path / "o.g2o").exists()
+
+
+def test_certify_help_documents_the_exit_status(capsys):
+    rc, out, _ = _call(capsys, "certify", "--help")
+    assert rc == 0
+    text = " ".join(out.split())
+    assert "exit status: 0 certified globally optimal; 3 ran, but NOT certified" in text
+    assert "--max-escapes N" in out and "(default: 10)" in out
+    rc, out, _ = _call(capsys, "solve", "--help")
+    assert "--certify" in out and "exit status 3 when not certified" in " ".join(out.split())
+    rc, out, _ = _call(capsys, "--help")
+    assert "3 not certified" in out
+
+
 # ----------------------------------------------------------------------------- plot, datasets
 def test_plot_the_graph_at_its_own_poses(aniso, capsys, tmp_path):
     path, g, _, _, _ = aniso
@@ -586,7 +803,7 @@ def test_warnings_are_one_line_each(capsys, tmp_path):
     assert "poses             2 (ids 0..1)" in out
 
 
-@pytest.mark.parametrize("command", ["info", "solve", "plot", "datasets"])
+@pytest.mark.parametrize("command", ["info", "solve", "certify", "plot", "datasets"])
 def test_help_on_every_command_has_a_description_and_an_example(capsys, command):
     rc, out, err = _call(capsys, command, "--help")
     assert rc == 0 and err == ""
@@ -597,7 +814,7 @@ def test_help_on_every_command_has_a_description_and_an_example(capsys, command)
 def test_top_level_help_lists_the_commands(capsys):
     rc, out, _ = _call(capsys, "--help")
     assert rc == 0
-    for command in ("info", "solve", "plot", "datasets", "book"):
+    for command in ("info", "solve", "certify", "plot", "datasets", "book"):
         assert re.search(rf"^    {command}\s", out, re.M)
 
 
