@@ -92,10 +92,19 @@ __all__ = [
     "Certificate",
     "certify",
     "escape",
+    "lifted_cost",
+    "refine_lifted",
+    "round_solution",
+    "ChordalSystem",
+    "ChordalNewtonSystem",
+    "LiftedSystem",
     "SolveResult",
     "solve",
     "ETA",
 ]
+
+#: The relative decrease at which :func:`solve` stops the rank-``r`` polish to try rounding.
+LOOSE_TOL = 1e-7
 
 #: Relative tolerance of the certificate: ``lambda_min(S~) >= -ETA * mean|lambda|`` counts as
 #: positive semidefinite (see :func:`certify`, which also keeps it above rounding in ``M``).
@@ -379,9 +388,12 @@ class ChordalSystem(LinearSystem):
         self._W = w[:, :, None] * np.eye(4)  # (m, 4, 4)
 
     def _edge_weights(self):
+        """``diag(tau, tau, kappa, kappa)`` per edge, shape (m, 4, 4)."""
         return self._W
 
     def _terms(self, poses):
+        """Residuals ``r`` (m, 4) and their Jacobians (m, 4, 6) w.r.t. ``(x_i, y_i, theta_i,
+        x_j, y_j, theta_j)``; no priors."""
         p = self.problem
         pi, pj = poses[p.i], poses[p.j]
         c, s = np.cos(pi[:, 2]), np.sin(pi[:, 2])
@@ -403,7 +415,51 @@ class ChordalSystem(LinearSystem):
         return e, J, np.zeros((0, 3)), np.zeros((0, 3, 3))
 
     def objective(self, poses):
+        """The chordal cost ``f`` at ``poses`` (shape (n, 3))."""
         return chordal_cost(self.problem, poses)
+
+
+class _FixedPattern:
+    """Sparse matrices put on one pattern, fixed per problem, so that the factorization's
+    symbolic analysis (qdldl's AMD ordering) is computed once and reused by every iteration:
+    sparse products drop entries that happen to be zero, so their pattern changes with the
+    values."""
+
+    def __init__(self, template):
+        t = (abs(template) + sp.identity(template.shape[0])).tocsr()
+        t.sum_duplicates()
+        t.sort_indices()
+        self.shape, self.indptr, self.indices = t.shape, t.indptr, t.indices
+        rows = np.repeat(np.arange(t.shape[0], dtype=np.int64), np.diff(t.indptr))
+        self.keys = rows * t.shape[1] + t.indices
+        self.diag = np.searchsorted(
+            self.keys, np.arange(t.shape[0], dtype=np.int64) * (t.shape[1] + 1)
+        )
+
+    def put(self, H):
+        """``H`` (any pattern inside the template) on the fixed pattern, as CSR."""
+        c = H.tocoo()
+        slot = np.searchsorted(self.keys, c.row.astype(np.int64) * self.shape[1] + c.col)
+        data = np.bincount(slot, weights=c.data, minlength=self.keys.size)
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
+
+    def damped(self, H, lam):
+        """``H + lam I`` on the same pattern."""
+        data = H.data.copy()
+        data[self.diag] += lam
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
+
+
+def _template(Ps, M_real):
+    """Every entry ``P^T (M + diag) P`` can have, from absolute values (no cancellation)."""
+    S = abs(M_real) + sp.identity(M_real.shape[0])
+    out = None
+    for P in Ps:
+        A = abs(P)
+        A.data[:] = 1.0
+        term = A.T @ (S @ A)
+        out = term if out is None else out + term
+    return out
 
 
 class ChordalNewtonSystem(ChordalSystem):
@@ -429,6 +485,7 @@ class ChordalNewtonSystem(ChordalSystem):
         self._P_cols = cols.reshape(k, 3)
         self._z_re_rows, self._z_im_rows = n + self.free, 3 * n + self.free
         self._shape = (4 * n, 3 * k)
+        self._pattern = None
 
     def _P(self, poses):
         """``P`` in real form, shape (4 n, 3 k): columns ``(dx, dy, omega)`` of the free poses."""
@@ -444,20 +501,24 @@ class ChordalNewtonSystem(ChordalSystem):
         return sp.csr_matrix((vals, (rows, cols)), shape=self._shape)
 
     def assemble(self, poses):
+        """``H = 2 Re(P^H S P)`` (free poses, (3 k, 3 k)), ``b = 2 Re(P^H M x)`` and ``f``."""
         p = self.problem
         n = p.n
         x = to_complex(poses)
         Mx = p.M @ x
         lam = (x[n:].conj() * Mx[n:]).real  # multipliers at the current point
         P = self._P(poses)
+        if self._pattern is None:
+            self._pattern = _FixedPattern(_template([P], p._M_real))
         S = p._M_real - sp.diags(np.concatenate([np.zeros(n), lam, np.zeros(n), lam]))
-        H = (2.0 * (P.T @ (S @ P))).tocsr()  # 2 Re(P^H S P)
-        H = 0.5 * (H + H.T)
+        H = P.T @ (S @ P)
+        H = self._pattern.put(H + H.T)  # 2 Re(P^H S P), symmetric
         b = 2.0 * (P.T @ np.concatenate([Mx.real, Mx.imag]))  # 2 Re(P^H M x)
         return H, b, float((x.conj() @ Mx).real)
 
     def damped(self, H, lam):
-        return (H + lam * sp.identity(H.shape[0], format="csr")).tocsr()
+        """``H + lam I`` on ``H``'s fixed pattern."""
+        return self._pattern.damped(H, lam)
 
 
 def refine(
@@ -890,6 +951,7 @@ class LiftedSystem:
         self.free = np.arange(1, n)
         self.d = 4 * r - 1  # unknowns per pose
         self.N = self.d * self.free.size
+        self._pattern = None
 
     def _unpack(self, X):
         """Real rows of ``Y``: shape (n, 2 r), ``[Re y_i, Im y_i]``."""
@@ -932,23 +994,68 @@ class LiftedSystem:
         return Ps
 
     def assemble(self, X):
+        """``H = 2 P^T (I_r ⊗ S) P``, ``b = 2 P^T vec(M X)`` and ``f`` at the lifted ``X``."""
         p, n = self.problem, self.problem.n
         MX = p.M @ X
         lam = np.sum(X[n:].conj() * MX[n:], axis=1).real
         S = p._M_real - sp.diags(np.concatenate([np.zeros(n), lam, np.zeros(n), lam]))
+        Ps = self._P(X)
+        if self._pattern is None:
+            self._pattern = _FixedPattern(_template(Ps, p._M_real))
         H = sp.csr_matrix((self.N, self.N))
         b = np.zeros(self.N)
-        for c, P in enumerate(self._P(X)):
+        for c, P in enumerate(Ps):
             H = H + P.T @ (S @ P)
             b += P.T @ np.concatenate([MX[:, c].real, MX[:, c].imag])
-        H = (H + H.T).tocsr()  # 2 sym(P^T S P)
+        H = self._pattern.put(H + H.T)  # 2 sym(P^T S P)
         return H, 2.0 * b, lifted_cost(p, X)
 
     def objective(self, X):
+        """``tr(X^H M X)``, as the sum of edge terms."""
         return lifted_cost(self.problem, X)
 
-    def update(self, X, dx):
+    def _gauge(self, X):
+        """Tangent coordinates of the symmetries left when the first pose is fixed: ``X -> X A``
+        with ``A`` skew-Hermitian and ``y_0 A = 0`` (``(r - 1)^2`` directions; none at r = 1).
+        ``f`` is constant along them, so ``H`` is singular there."""
         n, r = self.problem.n, self.r
+        if r < 2:
+            return np.zeros((self.N, 0))
+        q = X[n]  # y_0, unit row of C^r
+        # orthonormal columns W with q W = 0
+        _, _, Vh = np.linalg.svd(q[None, :])
+        W = Vh.conj().T[:, 1:]  # (r, r-1): q @ W = 0
+        gens = []
+        for a in range(r - 1):
+            for b in range(a, r - 1):
+                E = np.zeros((r - 1, r - 1), dtype=complex)
+                if a == b:
+                    E[a, a] = 1j
+                    gens.append(E)
+                else:
+                    E1, E2 = E.copy(), E.copy()
+                    E1[a, b], E1[b, a] = 1.0, -1.0
+                    E2[a, b], E2[b, a] = 1j, 1j
+                    gens += [E1, E2]
+        B = self._basis(X)
+        T, Y = X[self.free], X[n + self.free]
+        cols = []
+        for C in gens:
+            A = W @ C @ W.conj().T
+            dT, dY = T @ A, Y @ A
+            u = np.empty((self.free.size, self.d))
+            u[:, 0 : 2 * r : 2], u[:, 1 : 2 * r : 2] = dT.real, dT.imag
+            u[:, 2 * r :] = np.einsum("kab,ka->kb", B, np.concatenate([dY.real, dY.imag], axis=1))
+            cols.append(u.ravel())
+        return np.column_stack(cols)
+
+    def update(self, X, dx):
+        """Move by ``dx`` (tangent coordinates, symmetry directions removed) and normalize
+        the rows of ``Y`` again (the retraction)."""
+        n, r = self.problem.n, self.r
+        G = self._gauge(X)
+        if G.shape[1]:  # move across the symmetry orbits only (the step along them is noise)
+            dx = dx - G @ np.linalg.lstsq(G, dx, rcond=None)[0]
         u = dx.reshape(-1, self.d)
         out = X.copy()
         out[self.free] += u[:, 0 : 2 * r : 2] + 1j * u[:, 1 : 2 * r : 2]
@@ -959,10 +1066,11 @@ class LiftedSystem:
         return out
 
     def damped(self, H, lam):
-        return (H + lam * sp.identity(H.shape[0], format="csr")).tocsr()
+        """``H + lam I`` on ``H``'s fixed pattern."""
+        return self._pattern.damped(H, lam)
 
 
-def refine_lifted(problem, X, *, max_iterations=200, tol=1e-14, step_tol=1e-12):
+def refine_lifted(problem, X, *, max_iterations=300, tol=1e-14, step_tol=1e-12):
     """Newton (with Levenberg's damping) on the rank-``r`` relaxation from ``X``.
 
     Returns
@@ -1230,18 +1338,12 @@ def solve(graph, initial=None, *, tree=None, max_escapes=10, eta=None, verbose=F
             reason = "not certified: no escape step decreases the cost"
             break
         escapes += 1
+        r = X.shape[1]
+        # a loose polish at rank r is enough to find the basin: rounding + the rank-one Newton
+        # polish converge fast; near a rank-deficient optimum Newton at rank r is only linear
         t = time.perf_counter()
-        X, f_X, it = refine_lifted(p, X)
-        record(f"rank-{X.shape[1]} polish", "refine", time.perf_counter() - t, f=f_X, iterations=it)
-        X_cert = certify(p, X, eta=eta)
-        record(
-            f"rank-{X.shape[1]} certificate",
-            "certify",
-            X_cert.seconds,
-            certified=X_cert.certified,
-            lambda_min=_lm(X_cert),
-        )
-        bound = max(bound, X_cert.lower_bound)
+        X, f_X, it = refine_lifted(p, X, tol=LOOSE_TOL)
+        record(f"rank-{r} polish", "refine", time.perf_counter() - t, f=f_X, iterations=it)
         ref = refine(p, round_solution(p, X))  # back to rank one
         record(
             "round + chordal polish",
@@ -1258,10 +1360,24 @@ def solve(graph, initial=None, *, tree=None, max_escapes=10, eta=None, verbose=F
         if cert.certified or cert.f < best_cert.f:
             best, best_cert = ref.poses, cert
         if best_cert.certified:
-            reason = f"certified after {escapes} escape(s), through rank {X.shape[1]}"
-        elif X_cert.certified:  # the relaxation's optimum, and it is not rank one
+            reason = f"certified after {escapes} escape(s), through rank {r}"
+            break
+        # not yet: polish the relaxation to the last digits and ask its certificate
+        t = time.perf_counter()
+        X, f_X, it = refine_lifted(p, X)
+        record(f"rank-{r} polish (tight)", "refine", time.perf_counter() - t, f=f_X, iterations=it)
+        X_cert = certify(p, X, eta=eta)
+        record(
+            f"rank-{r} certificate",
+            "certify",
+            X_cert.seconds,
+            certified=X_cert.certified,
+            lambda_min=_lm(X_cert),
+        )
+        bound = max(bound, X_cert.lower_bound)
+        if X_cert.certified:  # the relaxation's optimum, and it is not rank one
             reason = (
-                f"not certified: the rank-{X.shape[1]} relaxation is certified optimal but its "
+                f"not certified: the rank-{r} relaxation is certified optimal but its "
                 "solution is not rank one (the relaxation is not tight); the gap is the bound"
             )
             break

@@ -1,0 +1,253 @@
+"""Chapter 9's exercise checks (lagolib.exercises.ch09): right, unfinished, wrong and crashing answers.
+
+Every check must say "correct" to the reference answer, "not attempted yet" to the stub's
+placeholder, name the mistake for the usual wrong answers, and never raise.  The checks draw their
+test cases from fixed seeds, so the numbers asserted here are reproducible.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import lagolib
+from lagolib import certify, simulate
+from lagolib.exercises import NOT_ATTEMPTED, ch09, passed, reset
+
+
+@pytest.fixture(autouse=True)
+def _fresh_results():
+    reset()
+    yield
+    reset()
+
+
+def _run(capsys, check, *answer):
+    ok = check(*answer)
+    out = capsys.readouterr().out
+    return ok, out
+
+
+# --------------------------------------------------------------------------- 9.1
+def lam_ok(M, x):
+    n = x.size // 2
+    return (np.conj(x[n:]) * (M @ x)[n:]).real
+
+
+def lam_imag(M, x):
+    n = x.size // 2
+    return (np.conj(x[n:]) * (M @ x)[n:]).imag
+
+
+def lam_no_conj(M, x):
+    n = x.size // 2
+    return (x[n:] * (M @ x)[n:]).real
+
+
+def lam_translations(M, x):
+    n = x.size // 2
+    return (np.conj(x[:n]) * (M @ x)[:n]).real
+
+
+def lam_modulus(M, x):
+    return np.abs((M @ x)[x.size // 2 :])
+
+
+def lam_complex(M, x):
+    n = x.size // 2
+    return np.conj(x[n:]) * (M @ x)[n:]
+
+
+def test_multipliers_reference_is_correct(capsys):
+    ok, out = _run(capsys, ch09.check_multipliers, lam_ok)
+    assert ok is True and passed("9.1")
+    assert "Exercise 9.1 — correct" in out and "all 2 test points" in out
+
+
+def test_multiplier_cases_are_what_the_statement_says():
+    (p1, x1), (p2, x2) = ch09._multiplier_cases()
+    assert p1.n == 16 and x1.shape == (32,) and np.iscomplexobj(x1)
+    ev = np.linalg.eigvalsh(p1.graph.information[:, :2, :2])
+    assert np.all(ev[:, 1] / ev[:, 0] > 10)  # anisotropic
+    c1, c2 = certify.certify(p1, x1), certify.certify(p2, x2)
+    assert c1.gradient < 1e-6 < 1.0 < c2.gradient  # stationary, then not
+    lam = certify.multipliers(p1, x1)
+    assert lam.sum() == pytest.approx(c1.f, rel=1e-7)
+
+
+@pytest.mark.parametrize(
+    "stub", [..., lambda M, x: ..., lambda M, x: None, lambda M, x: (..., ...)[0]]
+)
+def test_multipliers_stub_is_not_attempted(capsys, stub):
+    ok, out = _run(capsys, ch09.check_multipliers, stub)
+    assert ok is False and not passed("9.1")
+    assert NOT_ATTEMPTED in out
+
+
+@pytest.mark.parametrize(
+    "wrong, message",
+    [
+        (lam_imag, "you took the imaginary part of conj(z_i) (M x)_{n+i}"),
+        (lam_no_conj, "z_i is not conjugated"),
+        (lam_translations, "you used the first n entries of x and M x"),
+        (lam_modulus, "you took |(M x)_{n+i}|"),
+        (lam_complex, "your multipliers are complex: conj(z_i) (M x)_{n+i} itself"),
+        (lambda M, x: 2 * lam_ok(M, x), "your multipliers are twice the reference"),
+        (lambda M, x: -lam_ok(M, x), "lambda has the opposite sign of the reference"),
+        (lambda M, x: (M @ x).real, "lambda has shape (32,), expected (16,)"),
+    ],
+    ids=["imag", "no-conj", "translations", "modulus", "complex", "twice", "sign", "shape"],
+)
+def test_multipliers_wrong_answers_are_named(capsys, wrong, message):
+    ok, out = _run(capsys, ch09.check_multipliers, wrong)
+    assert ok is False and not passed("9.1")
+    assert "Exercise 9.1 — not yet: on test" in out
+    assert message in out
+
+
+def test_multipliers_imaginary_part_fails_at_the_stationary_point_first(capsys):
+    ok, out = _run(capsys, ch09.check_multipliers, lam_imag)
+    assert "on test 1 of 2 (a stationary point)" in out
+
+
+def test_multipliers_student_exception_is_feedback(capsys):
+    def broken(M, x):
+        return x[M.shape[0] + 5]
+
+    ok, out = _run(capsys, ch09.check_multipliers, broken)
+    assert ok is False and "multipliers raised IndexError" in out
+
+
+def test_multipliers_in_place_modification_does_not_corrupt_the_reference(capsys):
+    def in_place(M, x):
+        out = lam_ok(M, x)
+        x[:] = 0.0
+        M.data[:] = 0.0
+        return out
+
+    ok, _ = _run(capsys, ch09.check_multipliers, in_place)
+    assert ok is True
+    ok, _ = _run(capsys, ch09.check_multipliers, lam_ok)
+    assert ok is True
+
+
+# --------------------------------------------------------------------------- 9.2
+@pytest.fixture(scope="module")
+def manhattan_points():
+    """The chapter's two points on the 500-pose Manhattan world (sigma_theta = 0.2, seed 7)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lagolib.LagolibWarning)
+        g = simulate.manhattan_world(
+            n_poses=500, extent=20, rng=7, sigma_theta=0.2, sigma_xy=0.05
+        ).graph
+        p = certify.chordal_problem(g)
+        gn = lagolib.optimize(g, lagolib.lago_solve(g, margin_warning=0).poses)
+        P = certify.refine(p, gn.poses).poses
+        Q = certify.solve(g).chordal_poses
+    return p, P, Q
+
+
+def _bound_P(p, P):
+    c = certify.certify(p, P)
+    return c, float(c.multipliers.sum()), c.lambda_min
+
+
+def test_certificate_reading_reference_is_correct(capsys, manhattan_points):
+    p, P, Q = manhattan_points
+    c, s, lm = _bound_P(p, P)
+    assert lm == pytest.approx(-7.72195, rel=1e-4) and c.lower_bound == pytest.approx(
+        -3192.36, rel=1e-5
+    )
+    ok, out = _run(capsys, ch09.check_certificate_reading, "Q", s + p.n * lm, p, P, Q)
+    assert ok is True and passed("9.2")
+    assert "Exercise 9.2 — correct: P: certified False, λ_min -7.72195, lower bound -3192.36" in out
+    assert "Q: certified True" in out
+
+
+def test_certificate_reading_accepts_numbers_read_off_the_print(capsys, manhattan_points):
+    p, P, Q = manhattan_points
+    ok, _ = _run(
+        capsys, ch09.check_certificate_reading, " q ", 668.613587 + 500 * -7.721953, p, P, Q
+    )
+    assert ok is True
+
+
+@pytest.mark.parametrize("answer", [(..., -3192.36), ("Q", ...), (None, None)])
+def test_certificate_reading_stub_is_not_attempted(capsys, manhattan_points, answer):
+    ok, out = _run(capsys, ch09.check_certificate_reading, *answer, *manhattan_points)
+    assert ok is False and NOT_ATTEMPTED in out
+
+
+@pytest.mark.parametrize(
+    "choice, bound, message",
+    [
+        ("P", -3192.36, "you predicted 'P', but P: certified False, λ_min -7.72195"),
+        ("both", -3192.36, "you predicted 'both'"),
+        ("Q", 668.613587, "that is Σλ = f(P) itself"),
+        ("Q", 668.613587 - 7.721953, "Σλ + λ_min — the eigenvalue counts once per pose"),
+        ("Q", 668.613587 + 500 * 7.721953, "the sign of n·λ_min is flipped"),
+        ("Q", 668.613587 - 1000 * 7.721953, "you multiplied by 2n; n = 500 poses"),
+        ("Q", -3000.0, "lower_bound_P is -3000; the reference is -3192.36"),
+        ("R", -3192.36, "certified_point should be one of ['P', 'Q', 'both', 'neither'], got 'R'"),
+    ],
+    ids=["P", "both", "f", "no-n", "sign", "2n", "misread", "unknown"],
+)
+def test_certificate_reading_wrong_answers_are_named(
+    capsys, manhattan_points, choice, bound, message
+):
+    ok, out = _run(capsys, ch09.check_certificate_reading, choice, bound, *manhattan_points)
+    assert ok is False and not passed("9.2")
+    assert "Exercise 9.2 — not yet" in out and message in out
+
+
+def test_certificate_reading_odd_answer_does_not_raise(capsys, manhattan_points):
+    ok, out = _run(capsys, ch09.check_certificate_reading, "Q", [1, 2], *manhattan_points)
+    assert ok is False and "lower_bound_P should be one number" in out
+    ok, out = _run(capsys, ch09.check_certificate_reading, "Q", -3192.36, "not a problem", 1, 2)
+    assert ok is False and "could not read your answer" in out
+
+
+# --------------------------------------------------------------------------- 9.3
+def test_noise_sweep_numbers_and_cache():
+    sw = ch09.noise_sweep()
+    assert sw["certified"].shape == (len(ch09.SWEEP_SIGMAS), len(ch09.SWEEP_SEEDS))
+    assert sw["certified"][:4].all() and sw["certified"][4].tolist() == [False, True, True, True]
+    assert sw["not_tight"].sum() == 1 and sw["not_tight"][4, 0]
+    assert sw["escapes"][4, 0] == 1
+    assert 1e-5 < sw["relative_gap"][4, 0] < 1e-3 and np.all(sw["relative_gap"] < 1e-3)
+    sw["certified"][:] = False  # a copy: the cache is not corrupted
+    assert ch09.noise_sweep()["certified"][0].all()
+
+
+def test_noise_sweep_reference_is_correct(capsys):
+    ok, out = _run(capsys, ch09.check_noise_sweep, 0.5, 1)
+    assert ok is True and passed("9.3")
+    assert "σθ 0.4: 1.00, σθ 0.5: 0.75; 1 world(s) with a relaxation that is not tight" in out
+
+
+@pytest.mark.parametrize("answer", [(..., ...), (0.5, ...), (..., 1)])
+def test_noise_sweep_stub_is_not_attempted(capsys, answer):
+    ok, out = _run(capsys, ch09.check_noise_sweep, *answer)
+    assert ok is False and NOT_ATTEMPTED in out
+
+
+@pytest.mark.parametrize(
+    "answer, message",
+    [
+        ((0.4, 1), "first_uncertified is 0.4; the certified fractions are σθ 0.1: 1.00"),
+        ((0.45, 1), "first_uncertified is 0.45; the reference is 0.5"),
+        ((0.5, 0), "not_tight is 0: that is 1 fewer than the reference"),
+        ((0.5, 2), "not_tight is 2: that is 1 more than the reference"),
+        ((0.5, "one"), "not_tight should be a whole number, got 'one'"),
+    ],
+    ids=["sigma-before", "sigma-off-grid", "count-low", "count-high", "count-word"],
+)
+def test_noise_sweep_wrong_answers_are_named(capsys, answer, message):
+    ok, out = _run(capsys, ch09.check_noise_sweep, *answer)
+    assert ok is False and not passed("9.3")
+    assert "Exercise 9.3 — not yet" in out and message in out
+
+
+def test_noise_sweep_odd_answer_does_not_raise(capsys):
+    ok, out = _run(capsys, ch09.check_noise_sweep, [0.5], 1)
+    assert ok is False and "first_uncertified should be one number" in out
