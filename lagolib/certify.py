@@ -794,8 +794,8 @@ class Certificate:
         ``sum(lambda) + n min(lambda_min, 0) <= f*`` (with ``lambda_min >= -eta`` when no
         eigenvalue was computed).
     gap, relative_gap : float
-        ``f - lower_bound`` and the gap over ``f``: how far above the global optimum ``f`` can
-        be, at most.
+        ``f - lower_bound``: how far above the global optimum ``f`` can be, at most; and the gap
+        over ``f`` (over ``n eta`` when ``f`` is smaller — a noiseless graph, ``f = 0``).
     eigenvector : ndarray of complex, shape (n,), or None
         The rotation part of the eigenvector of ``lambda_min`` (unit norm) when not certified.
     gradient : float
@@ -882,7 +882,9 @@ def certify(problem, poses, *, eta=None, eigenvalues=0):
     certified optimum of the benchmarks, ``lambda_min`` is 1e-13 to 1e-10 of that scale; at a
     local minimum that is not global it is 1e-4 or larger.  When the residuals vanish
     (noiseless graphs, trees) so do the multipliers, and rounding in ``M`` sets the scale:
-    ``eta`` is never below ``1e-10`` times the mean rotation diagonal of ``M``.  The bound
+    ``eta`` is never below ``1e-12`` times the mean rotation diagonal of ``M`` (rounding in the
+    factorization is ~1e-16 of ``M``'s largest entries; noiseless benchmarks give ``|lambda_min|``
+    below 1e-13 of that mean).  The bound
     accounts for the tolerance: a certified point's ``lower_bound`` is
     ``sum(lambda) - n eta``.
 
@@ -918,7 +920,7 @@ def certify(problem, poses, *, eta=None, eigenvalues=0):
     if k > n:
         raise OptionError(f"{where}: eigenvalues must be at most n = {n}; got {k}")
     if eta is None:  # relative to the multipliers, and never below rounding in M
-        eta = ETA * max(float(np.mean(np.abs(lam))), 1e-3 * float(np.mean(p.M.diagonal()[n:].real)))
+        eta = ETA * max(float(np.mean(np.abs(lam))), 1e-5 * float(np.mean(p.M.diagonal()[n:].real)))
     else:
         eta = check_real(eta, "eta", where, minimum=0.0)
     factor = _ShiftedFactor(p, lam)
@@ -941,7 +943,7 @@ def certify(problem, poses, *, eta=None, eigenvalues=0):
         eigenvalues=eigvals,
         lower_bound=bound,
         gap=gap,
-        relative_gap=gap / f if f > 0 else 0.0,
+        relative_gap=gap / max(f, n * float(eta), np.finfo(float).tiny),
         gradient=gradient,
         eigenvector=None if certified else vec,
         seconds=time.perf_counter() - t0,
