@@ -111,6 +111,11 @@ __all__ = [
 
 #: The relative decrease at which :func:`solve` stops the rank-``r`` polish to try rounding.
 LOOSE_TOL = 1e-7
+#: :func:`solve`'s budget of Newton iterations for the loose and the tight rank-``r`` polish:
+#: near a rank-deficient optimum Newton converges only linearly (254 iterations were seen on a
+#: 1000-pose world with sigma_theta 0.5), and the certificate of the relaxation needs only
+#: stationarity to its tolerance.
+LIFTED_ITERATIONS = (100, 150)
 
 #: Relative tolerance of the certificate: ``lambda_min(S~) >= -ETA * mean|lambda|`` counts as
 #: positive semidefinite (see :func:`certify`, which also keeps it above rounding in ``M``).
@@ -150,6 +155,17 @@ class ChordalProblem:
     @property
     def m(self):
         return self.graph.m
+
+    @cached_property
+    def _unit(self):
+        """``(problem with kappa, tau divided by s, s)``, ``s`` the median weight: the same
+        minimizers, costs of order 1 per edge — what the local solvers iterate on."""
+        s = float(np.median(np.concatenate([self.kappa, self.tau])))
+        if s == 1.0:
+            return self, 1.0
+        return ChordalProblem(
+            self.graph, self.i, self.j, self.t_meas, self.R_meas, self.kappa / s, self.tau / s
+        ), s
 
     @cached_property
     def M(self):
@@ -303,7 +319,7 @@ def to_complex(poses):
     -------
     ndarray of complex, shape (2 n,)
     """
-    poses = np.asarray(poses, dtype=float)
+    poses = _real_matrix(poses, "poses", "to_complex", 3)
     return np.concatenate([poses[:, 0] + 1j * poses[:, 1], np.exp(1j * poses[:, 2])])
 
 
@@ -318,9 +334,38 @@ def from_complex(x):
     -------
     ndarray, shape (n, 3)
     """
-    x = np.asarray(x)
+    x = _complex_array(x, "x", "from_complex")
+    if x.ndim != 1 or x.size % 2:
+        raise OptionError(
+            f"from_complex: x must be a vector of even length 2 n; got shape {x.shape}"
+        )
     n = x.size // 2
     return np.column_stack([x[:n].real, x[:n].imag, np.angle(x[n:])])
+
+
+def _real_matrix(value, name, where, cols):
+    """A finite real float array of shape (k, cols), or an OptionError naming ``name``."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise OptionError(f"{where}: {name} must be a real array of shape (n, {cols})") from None
+    if arr.ndim != 2 or arr.shape[1] != cols or not np.all(np.isfinite(arr)):
+        raise OptionError(
+            f"{where}: {name} must be a finite real array of shape (n, {cols}); got shape "
+            f"{arr.shape}"
+        )
+    return arr
+
+
+def _complex_array(value, name, where):
+    """A finite complex array, or an OptionError naming ``name``."""
+    try:
+        arr = np.asarray(value, dtype=complex)
+    except (TypeError, ValueError):
+        raise OptionError(f"{where}: {name} must be a numeric (complex) array") from None
+    if not np.all(np.isfinite(arr)):
+        raise OptionError(f"{where}: {name} must be finite")
+    return arr
 
 
 def data_matrix(problem):
@@ -384,6 +429,7 @@ def chordal_cost(problem, poses, *, per_edge=False):
     float, or ndarray of shape (m,)
     """
     p = _problem(problem, "chordal_cost")
+    per_edge = check_bool(per_edge, "per_edge", "chordal_cost")
     x = _as_x(p, poses, "chordal_cost")
     n = p.n
     t, z = x[:n], x[n:]
@@ -393,18 +439,29 @@ def chordal_cost(problem, poses, *, per_edge=False):
     return terms if per_edge else float(terms.sum())
 
 
-def _as_x(p, poses, where, *, lifted=False):
+def _as_x(p, poses, where, *, lifted=False, unit=False):
     """Poses (n, 3) or a complex ``x = [t; z]`` (2 n,) — or, with ``lifted``, a complex
     ``X = [T; Y]`` of shape (2 n, r) — as a complex array."""
     arr = np.asarray(poses)
     if np.iscomplexobj(arr):
-        ok = arr.shape == (2 * p.n,) or (lifted and arr.ndim == 2 and arr.shape[0] == 2 * p.n)
+        n = p.n
+        ok = arr.shape == (2 * n,) or (
+            lifted and arr.ndim == 2 and arr.shape[0] == 2 * n and arr.shape[1] >= 1
+        )
         if not ok or not np.all(np.isfinite(arr)):
-            want = f"({2 * p.n},)" + (f" or ({2 * p.n}, r)" if lifted else "")
+            want = f"({2 * n},)" + (f" or ({2 * n}, r) with r >= 1" if lifted else "")
             raise OptionError(
                 f"{where}: a complex x = [t; z] must have shape {want} and be finite; "
                 f"got shape {arr.shape}"
             )
+        if unit:
+            norms = np.abs(arr[n:]) if arr.ndim == 1 else np.linalg.norm(arr[n:], axis=1)
+            bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-8)
+            if bad.size:
+                raise OptionError(
+                    f"{where}: the rotations z must have |z_i| = 1 (the constraint the certificate "
+                    f"is about); |z_{bad[0]}| = {norms[bad[0]]:.6g} — normalize them, or pass poses"
+                )
         return arr
     return to_complex(as_graph_poses(p.graph, poses, "poses", "poses"))
 
@@ -571,13 +628,15 @@ def refine(
 ):
     """Minimize the chordal cost ``f`` locally from ``initial``: Newton (default) or Gauss–Newton.
 
-    The loop is :func:`lagolib.optimize`'s; the first pose (the one with the smallest id) is
-    held fixed.  ``method="newton"`` uses the exact Hessian (:class:`ChordalNewtonSystem`) with
-    Levenberg's damping, raised until ``H + lambda I`` is positive definite — quadratic
-    convergence, and safe near saddles.  ``method="gn"`` is Gauss–Newton on the chordal
-    residuals (:class:`ChordalSystem`): simpler, linear convergence when the residuals are
-    large (48 iterations on INTEL where Newton needs a handful).  Started at a χ² optimum the
-    first step is small but not zero: the two costs have nearby, different minima.
+    The loop is :func:`lagolib.optimize`'s; the first pose (row 0 of ``graph.poses``) is held
+    fixed.  The weights are divided by their median first (same minimizers), so that the result
+    does not depend on the information's overall scale.  ``method="newton"`` uses the exact
+    Hessian (:class:`ChordalNewtonSystem`) with Levenberg's damping, raised until
+    ``H + lambda I`` is positive definite — quadratic convergence, and safe near saddles.
+    ``method="gn"`` is Gauss–Newton on the chordal residuals (:class:`ChordalSystem`): simpler,
+    linear convergence when the residuals are large (48 iterations on INTEL where Newton needs
+    a handful).  Started at a χ² optimum the first step is small but not zero: the two costs
+    have nearby, different minima.
 
     Parameters
     ----------
@@ -606,10 +665,11 @@ def refine(
     verbose = check_bool(verbose, "verbose", where)
     x = as_graph_poses(p.graph, initial, "initial", "initial guess")
     fixed = [int(p.graph.ids[0])] if p.n else []
+    unit, scale = p._unit  # weights scaled to order 1: the damping's limits are absolute
     if method == "gn":
-        system, control = ChordalSystem(p, fixed=fixed), _GaussNewtonSteps(10)
+        system, control = ChordalSystem(unit, fixed=fixed), _GaussNewtonSteps(10)
     else:
-        system, control = ChordalNewtonSystem(p, fixed=fixed), _LevenbergMarquardtDamping(1e-8)
+        system, control = ChordalNewtonSystem(unit, fixed=fixed), _LevenbergMarquardtDamping(1e-8)
     solve_ = _LinearSolver("cholesky", "auto")
     trace = _Trace(method, verbose)
     x, f, stop = _minimize(system, x, control, solve_, trace, max_iterations, tol, step_tol, None)
@@ -617,8 +677,8 @@ def refine(
     trace.timings["total"] = time.perf_counter() - t0
     return OptimizeResult(
         poses=x,
-        chi2=f,
-        chi2_history=trace.history,
+        chi2=f * scale,
+        chi2_history=[h * scale for h in trace.history],
         step_norms=trace.steps,
         iterations=trace.iterations,
         converged=converged,
@@ -649,11 +709,20 @@ def optimal_translations(problem, z, t_anchor=0j):
     -------
     ndarray of complex, shape of ``z``
     """
-    p = _problem(problem, "optimal_translations")
+    where = "optimal_translations"
+    p = _problem(problem, where)
     n = p.n
-    Z = np.asarray(z, dtype=complex)
+    Z = _complex_array(z, "z", where)
+    if Z.ndim not in (1, 2) or Z.shape[0] != n or (Z.ndim == 2 and Z.shape[1] < 1):
+        raise OptionError(f"{where}: z must have shape ({n},) or ({n}, r); got {Z.shape}")
     Z2 = Z[:, None] if Z.ndim == 1 else Z
-    anchor = np.broadcast_to(np.asarray(t_anchor, dtype=complex), (Z2.shape[1],))
+    anchor = _complex_array(t_anchor, "t_anchor", where)
+    if anchor.ndim > 1 or anchor.size not in (1, Z2.shape[1]):
+        raise OptionError(
+            f"{where}: t_anchor must be one complex number or {Z2.shape[1]} of them (one per "
+            f"column of z); got shape {anchor.shape}"
+        )
+    anchor = np.broadcast_to(anchor.ravel(), (Z2.shape[1],))
     factor, keep = p._translation_factor
     M = p.M
     rhs = -(M[:n, n:] @ Z2)[keep] - M[:n, :n][keep][:, [0]].toarray() * anchor[None, :]
@@ -779,8 +848,8 @@ class Certificate:
     Attributes
     ----------
     certified : bool
-        ``lambda_min(S~) >= -eta``: the point is a global minimum of the chordal cost, up to
-        ``eta``.
+        ``lambda_min(S~) >= -eta`` and ``f - sum(lambda) <= n eta`` (the point is stationary):
+        a global minimum of the chordal cost, ``f - f* <= gap <= 2 n eta``.
     f : float
         Chordal cost at the point.
     multipliers : ndarray, shape (n,)
@@ -797,7 +866,8 @@ class Certificate:
         ``f - lower_bound``: how far above the global optimum ``f`` can be, at most; and the gap
         over ``f`` (over ``n eta`` when ``f`` is smaller — a noiseless graph, ``f = 0``).
     eigenvector : ndarray of complex, shape (n,), or None
-        The rotation part of the eigenvector of ``lambda_min`` (unit norm) when not certified.
+        The rotation part of the eigenvector of ``lambda_min`` (unit norm) when
+        ``lambda_min(S~) < -eta``; None when ``S~ + eta I`` is positive definite.
     gradient : float
         ``max |Im(conj(z_i) (M x)_{n+i})|`` and ``max |(M x)_t|`` together: how stationary the
         point is (the multipliers are exact only at a stationary point).
@@ -908,7 +978,7 @@ def certify(problem, poses, *, eta=None, eigenvalues=0):
     p = _problem(problem, "certify")
     where = "certify"
     k = check_int(eigenvalues, "eigenvalues", where, minimum=0)
-    X = _as_x(p, poses, where, lifted=True)
+    X = _as_x(p, poses, where, lifted=True, unit=True)
     X = X[:, None] if X.ndim == 1 else X
     n = p.n
     if n < 2:
@@ -924,17 +994,23 @@ def certify(problem, poses, *, eta=None, eigenvalues=0):
     else:
         eta = check_real(eta, "eta", where, minimum=0.0)
     factor = _ShiftedFactor(p, lam)
-    certified = factor.factor(eta)  # K + eta I_z = L D L^T with D > 0  <=>  lambda_min(S~) > -eta
+    psd = factor.factor(eta)  # K + eta I_z = L D L^T with D > 0  <=>  lambda_min(S~) > -eta
     eigvals, vec = np.zeros(0), None
-    if certified and k:
+    if psd and k:
         eigvals, _ = _smallest(factor, eta, k)
-    elif not certified:
-        shift = _bracket(factor, eta, float(np.max(np.abs(lam))) + eta)
+    elif not psd:
+        tiny = 1e-14 * (float(np.max(np.abs(lam))) + float(np.mean(p.M.diagonal()[n:].real)))
+        lo = max(eta, tiny)
+        shift = _bracket(factor, lo, float(np.max(np.abs(lam))) + 2.0 * lo)
         eigvals, vec = _smallest(factor, shift, max(k, 1))
     lam_min = float(eigvals[0]) if eigvals.size else -eta
     f = lifted_cost(p, X)  # the sum of edge terms: x^H M x can cancel to a negative number
     bound = float(lam.sum()) + n * min(lam_min, 0.0)
     gap = max(f - bound, 0.0)
+    # S~ >= 0 bounds f* from below by sum(lambda); x attains it only where f = sum(lambda),
+    # i.e. x^H S x = 0: at a stationary point (a point that is not gets no certificate)
+    stationary = f - float(lam.sum()) <= n * eta + 1e-12 * max(abs(f), float(np.sum(np.abs(lam))))
+    certified = psd and stationary
     return Certificate(
         certified=certified,
         f=f,
@@ -945,7 +1021,7 @@ def certify(problem, poses, *, eta=None, eigenvalues=0):
         gap=gap,
         relative_gap=gap / max(f, n * float(eta), np.finfo(float).tiny),
         gradient=gradient,
-        eigenvector=None if certified else vec,
+        eigenvector=vec,
         seconds=time.perf_counter() - t0,
     )
 
@@ -955,7 +1031,9 @@ def _bracket(factor, lo, hi):
     ``lo`` fails and ``hi`` succeeds (``hi > max lambda_i``: ``S~ = M~ - diag(lambda)`` and
     ``M~`` is positive semidefinite).  Bisection on ``log s``; ``factor`` ends factored at the
     returned shift."""
-    while hi > 2.0 * lo:
+    for _ in range(200):  # log2 of the ratio halves every pass: at most ~11 passes in float64
+        if not hi > 2.0 * lo:
+            break
         mid = math.sqrt(lo * hi)
         if factor.factor(mid):
             hi = mid
@@ -1121,16 +1199,30 @@ class LiftedSystem:
 def refine_lifted(problem, X, *, max_iterations=300, tol=1e-14, step_tol=1e-12):
     """Newton (with Levenberg's damping) on the rank-``r`` relaxation from ``X``.
 
+    Parameters
+    ----------
+    problem : ChordalProblem or PoseGraph
+    X : ndarray of complex, shape (2 n, r)
+        Rows of ``Y = X[n:]`` of unit norm.
+    max_iterations : int
+    tol, step_tol : float
+        As in :func:`refine`.
+
     Returns
     -------
     X : ndarray of complex, shape (2 n, r)
     f : float
     iterations : int
     """
-    p = _problem(problem, "refine_lifted")
-    X = _as_x(p, X, "refine_lifted", lifted=True)
+    where = "refine_lifted"
+    p = _problem(problem, where)
+    max_iterations = check_int(max_iterations, "max_iterations", where, minimum=0)
+    tol = check_real(tol, "tol", where, minimum=0.0)
+    step_tol = check_real(step_tol, "step_tol", where, minimum=0.0)
+    X = _as_x(p, X, where, lifted=True, unit=True)
     X = X[:, None] if X.ndim == 1 else X
-    system = LiftedSystem(p, X.shape[1])
+    unit, scale = p._unit  # weights scaled to order 1: the damping's limits are absolute
+    system = LiftedSystem(unit, X.shape[1])
     trace = _Trace("lm", False)
     control = _LevenbergMarquardtDamping(1e-8)
     X, f, _ = _minimize(
@@ -1144,7 +1236,7 @@ def refine_lifted(problem, X, *, max_iterations=300, tol=1e-14, step_tol=1e-12):
         step_tol,
         None,
     )
-    return X, f, trace.iterations
+    return X, f * scale, trace.iterations
 
 
 def escape(problem, X, certificate, *, max_halvings=40):
@@ -1175,11 +1267,18 @@ def escape(problem, X, certificate, *, max_halvings=40):
     p = _problem(problem, "escape")
     if not isinstance(certificate, Certificate) or certificate.eigenvector is None:
         raise OptionError(
-            "escape: needs the Certificate of a point that was not certified (it carries the "
-            "eigenvector to move along); certify the point first"
+            "escape: needs the Certificate of a point that was not certified, with "
+            "lambda_min(S~) < -eta (it carries the eigenvector to move along); certify the "
+            "point first (a point that is not stationary has no such eigenvector: refine it "
+            "first)"
         )
     max_halvings = check_int(max_halvings, "max_halvings", "escape", minimum=0)
-    X = _as_x(p, X, "escape", lifted=True)
+    if certificate.eigenvector.shape != (p.n,):
+        raise OptionError(
+            f"escape: the certificate's eigenvector has {certificate.eigenvector.size} entries and "
+            f"the graph {p.n} poses: it belongs to another graph; certify this point first"
+        )
+    X = _as_x(p, X, "escape", lifted=True, unit=True)
     X = X[:, None] if X.ndim == 1 else X
     n = p.n
     v = certificate.eigenvector / np.linalg.norm(certificate.eigenvector)
@@ -1217,7 +1316,7 @@ def round_solution(problem, X):
     ndarray, shape (n, 3)
     """
     p = _problem(problem, "round_solution")
-    X = _as_x(p, X, "round_solution", lifted=True)
+    X = _as_x(p, X, "round_solution", lifted=True, unit=True)
     X = X[:, None] if X.ndim == 1 else X
     n = p.n
     Y = X[n:]
@@ -1392,7 +1491,7 @@ def solve(graph, initial=None, *, tree=None, max_escapes=10, eta=None, verbose=F
         # a loose polish at rank r is enough to find the basin: rounding + the rank-one Newton
         # polish converge fast; near a rank-deficient optimum Newton at rank r is only linear
         t = time.perf_counter()
-        X, f_X, it = refine_lifted(p, X, tol=LOOSE_TOL)
+        X, f_X, it = refine_lifted(p, X, tol=LOOSE_TOL, max_iterations=LIFTED_ITERATIONS[0])
         record(f"rank-{r} polish", "refine", time.perf_counter() - t, f=f_X, iterations=it)
         ref = refine(p, round_solution(p, X))  # back to rank one
         record(
@@ -1414,7 +1513,7 @@ def solve(graph, initial=None, *, tree=None, max_escapes=10, eta=None, verbose=F
             break
         # not yet: polish the relaxation to the last digits and ask its certificate
         t = time.perf_counter()
-        X, f_X, it = refine_lifted(p, X)
+        X, f_X, it = refine_lifted(p, X, max_iterations=LIFTED_ITERATIONS[1])
         record(f"rank-{r} polish (tight)", "refine", time.perf_counter() - t, f=f_X, iterations=it)
         X_cert = certify(p, X, eta=eta)
         record(

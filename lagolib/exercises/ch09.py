@@ -21,6 +21,7 @@ a wrong answer (see :mod:`lagolib.exercises._feedback`).
 
 from __future__ import annotations
 
+import copy
 import warnings
 from functools import lru_cache
 
@@ -51,7 +52,7 @@ __all__ = [
 ]
 
 #: The rotation noises σ_θ (rad) of exercise 9.3's sweep.
-SWEEP_SIGMAS = (0.1, 0.2, 0.3, 0.4, 0.5)
+SWEEP_SIGMAS = (0.2, 0.3, 0.4, 0.5)
 #: The seeds of the Manhattan worlds of exercise 9.3 (one world per seed and σ_θ).
 SWEEP_SEEDS = (0, 1, 2, 3)
 #: The answers exercise 9.2 accepts for the certified point.
@@ -95,15 +96,18 @@ def _diagnose_multipliers(got, M, x, expected):
     except Exception:  # noqa: BLE001 - an odd answer is feedback
         g = None
     if g is not None and np.iscomplexobj(g) and g.shape == expected.shape:
-        if np.allclose(g, w, rtol=1e-7, atol=1e-9):
+        # a real answer in a complex array (zero imaginary part) is as good as a real one; at a
+        # stationary point conj(z_i) (M x)_{n+i} itself is real to rounding, so it passes there
+        # and is caught at the test point that is not stationary
+        if np.allclose(g.imag, 0, atol=1e-9 * max(1.0, np.abs(expected).max())):
+            got = g.real
+        elif np.allclose(g, w, rtol=1e-7, atol=1e-9):
             return (
                 "your multipliers are complex: conj(z_i) (M x)_{n+i} itself. λ_i is its real "
                 "part (the imaginary part is the gradient along the circle, zero only at a "
                 "stationary point).",
                 "take .real of the product.",
             )
-        if np.allclose(g.imag, 0, atol=1e-9 * max(1.0, np.abs(expected).max())):
-            got = g.real
         else:
             return (
                 "your multipliers are complex; λ_i is a real number, one per pose.",
@@ -294,14 +298,15 @@ def noise_sweep(sigmas=SWEEP_SIGMAS, seeds=SWEEP_SEEDS):
         ``"sigmas"``, ``"seeds"`` (tuples) and, each an ndarray of shape
         ``(len(sigmas), len(seeds))``: ``"certified"`` (bool), ``"not_tight"`` (bool: the
         rank-2 relaxation is certified but not rank one), ``"escapes"`` (int), ``"chi2"``,
-        ``"f"`` and ``"relative_gap"`` (``SolveResult.gap / f``), and ``"seconds"`` (float,
+        ``"f"``, ``"relative_gap"`` (``SolveResult.gap / f``), ``"reason"`` (str) and
+        ``"stages"`` (object: each world's ``SolveResult.stages``), and ``"seconds"`` (float,
         the whole sweep).
     """
     import time
 
     key = (tuple(float(s) for s in sigmas), tuple(int(s) for s in seeds))
-    if key in _SWEEP:
-        return {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in _SWEEP[key].items()}
+    if key in _SWEEP:  # a deep copy: the caller may change it without corrupting the cache
+        return copy.deepcopy(_SWEEP[key])
     shape = (len(key[0]), len(key[1]))
     out = {
         "certified": np.zeros(shape, bool),
@@ -310,6 +315,8 @@ def noise_sweep(sigmas=SWEEP_SIGMAS, seeds=SWEEP_SEEDS):
         "chi2": np.zeros(shape),
         "f": np.zeros(shape),
         "relative_gap": np.zeros(shape),
+        "reason": np.empty(shape, object),
+        "stages": np.empty(shape, object),
     }
     t0 = time.perf_counter()
     with warnings.catch_warnings():
@@ -326,6 +333,8 @@ def noise_sweep(sigmas=SWEEP_SIGMAS, seeds=SWEEP_SEEDS):
                 out["chi2"][a, b] = r.chi2
                 out["f"][a, b] = r.f
                 out["relative_gap"][a, b] = r.gap / r.f
+                out["reason"][a, b] = r.reason
+                out["stages"][a, b] = r.stages
     out["seconds"] = time.perf_counter() - t0
     out["sigmas"], out["seeds"] = key
     _SWEEP[key] = out
