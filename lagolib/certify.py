@@ -117,8 +117,9 @@ LOOSE_TOL = 1e-7
 #: stationarity to its tolerance.
 LIFTED_ITERATIONS = (100, 150)
 
-#: Relative tolerance of the certificate: ``lambda_min(S~) >= -ETA * mean|lambda|`` counts as
-#: positive semidefinite (see :func:`certify`, which also keeps it above rounding in ``M``).
+#: Relative tolerance of the certificate: ``lambda_min(S~) >= -eta`` with
+#: ``eta = ETA * max(mean|lambda|, 1e-5 * mean(diag M_zz))`` counts as positive semidefinite
+#: (see :func:`certify`; the second term keeps ``eta`` above rounding when the multipliers vanish).
 ETA = 1e-7
 
 
@@ -965,7 +966,8 @@ def certify(problem, poses, *, eta=None, eigenvalues=0):
         A stationary point of the chordal cost (:func:`refine`); elsewhere the multipliers, and
         so the certificate, mean little (``Certificate.gradient`` says how stationary it is).
     eta : float, optional
-        Absolute tolerance; default ``ETA * mean(lambda)``.
+        Absolute tolerance; default ``ETA * max(mean|lambda|, 1e-5 * mean(diag M_zz))`` (the
+        second term: the mean rotation diagonal of ``M``, the floor for noiseless graphs).
     eigenvalues : int
         Also compute this many smallest eigenvalues of ``S~`` when certified (``>= 0``; one is
         always computed when not certified).
@@ -1400,10 +1402,10 @@ def solve(graph, initial=None, *, tree=None, max_escapes=10, eta=None, verbose=F
     2. Gauss–Newton on χ² (:func:`lagolib.optimize`, LM if Gauss–Newton fails);
     3. :func:`refine` — the chordal cost's local minimum next to it;
     4. :func:`certify`; if not certified, climb the Riemannian staircase: :func:`escape` to
-       rank ``r + 1``, :func:`refine_lifted`, certify the relaxation, round to poses
-       (:func:`round_solution`), :func:`refine` and :func:`certify` — until certified, until a
-       certified relaxation is not rank one (not tight: the gap is then the bound), or
-       ``max_escapes`` times;
+       rank ``r + 1``, a loose :func:`refine_lifted` (to ``LOOSE_TOL``), round to poses
+       (:func:`round_solution`), :func:`refine` and :func:`certify`; only if that fails, polish
+       the relaxation tight and certify it.  Until certified, until a certified relaxation is
+       not rank one (not tight: its value is then the bound), or ``max_escapes`` times;
     5. Gauss–Newton on χ² from the best chordal point — the answer, in the basin the
        certificate vouches for (the polish or an escape may have left the first one's).
 
