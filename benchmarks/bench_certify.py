@@ -286,7 +286,7 @@ def child_table(spec):
         escapes=res.escapes,
         reason=res.reason,
         lower_bound=res.lower_bound,
-        relative_gap=res.gap / res.f if res.f > 0 else 0.0,
+        relative_gap=res.relative_gap,
         eta=res.certificate.eta,
         eig_cert=cert2.eigenvalues.tolist(),
         cert2_certified=cert2.certified,
@@ -447,7 +447,7 @@ def child_sweep(spec):
             escapes=res.escapes,
             reason=res.reason,
             lower_bound=res.lower_bound,
-            relative_gap=res.gap / res.f if res.f > 0 else 0.0,
+            relative_gap=res.relative_gap,
             lago_gn_chi2=gn_first,
             seconds=res.timings["total"],
         )

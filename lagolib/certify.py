@@ -1386,6 +1386,12 @@ class SolveResult:
         """``f - lower_bound``: how far above the global chordal optimum ``f`` can be."""
         return max(self.f - self.lower_bound, 0.0)
 
+    @property
+    def relative_gap(self):
+        """``gap`` over ``f`` (over ``n eta`` when ``f`` is smaller, e.g. ``f = 0``)."""
+        floor = self.graph.n * self.certificate.eta
+        return self.gap / max(self.f, floor, np.finfo(float).tiny)
+
     def __repr__(self):
         return (
             f"SolveResult(chi2={self.chi2:.10g}, f={self.f:.10g}, certified={self.certified}, "

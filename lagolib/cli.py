@@ -134,24 +134,23 @@ def _nonnegative_int(text):
     return value
 
 
-def _nonnegative_float(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative number; got {text!r}") from None
-    if not (np.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"expected a finite non-negative number; got {text!r}")
-    return value
+def _number(strict):
+    """An argparse type: a finite number, positive (``strict``) or non-negative."""
+    what = "positive number" if strict else "finite non-negative number"
+
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a {what}; got {text!r}") from None
+        if not (np.isfinite(value) and (value > 0 if strict else value >= 0)):
+            raise argparse.ArgumentTypeError(f"expected a {what}; got {text!r}")
+        return value
+
+    return parse
 
 
-def _positive_float(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number; got {text!r}") from None
-    if not (np.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number; got {text!r}")
-    return value
+_nonnegative_float, _positive_float = _number(False), _number(True)
 
 
 # ----------------------------------------------------------------------------- input
