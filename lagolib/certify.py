@@ -66,7 +66,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .checks import check_bool, check_choice, check_int, check_real
+from .checks import check_bool, check_choice, check_int, check_real, real_array
 from .errors import GraphError, NotPositiveDefiniteError, OptionError, OptionTypeError
 from .gauss_newton import (
     LinearSystem,
@@ -124,6 +124,21 @@ ETA = 1e-7
 
 
 # ----------------------------------------------------------------------------- the problem
+def _diagonal_slots(F):
+    """Data slot of every diagonal entry of a CSC matrix with sorted indices, shape (N,)."""
+    col = np.repeat(np.arange(F.shape[0]), np.diff(F.indptr))
+    on_diag = np.flatnonzero(F.indices == col)
+    slots = np.full(F.shape[0], -1, dtype=np.int64)
+    slots[col[on_diag]] = on_diag
+    return slots
+
+
+def _multipliers(X, MX, n):
+    """``lambda_i = Re(sum_c conj(Y_ic) (M X)_{n+i,c})`` for ``X`` of shape (2 n,) or (2 n, r)."""
+    prod = X[n:].conj() * MX[n:]
+    return (prod if prod.ndim == 1 else prod.sum(axis=1)).real
+
+
 @dataclass(frozen=True, eq=False)
 class ChordalProblem:
     """The chordal cost's data, per edge, in complex form.
@@ -164,9 +179,11 @@ class ChordalProblem:
         s = float(np.median(np.concatenate([self.kappa, self.tau])))
         if s == 1.0:
             return self, 1.0
-        return ChordalProblem(
+        unit = ChordalProblem(
             self.graph, self.i, self.j, self.t_meas, self.R_meas, self.kappa / s, self.tau / s
-        ), s
+        )
+        unit.__dict__["M"] = self.M / s  # M is linear in the weights: not assembled twice
+        return unit, s
 
     @cached_property
     def M(self):
@@ -181,30 +198,18 @@ class ChordalProblem:
 
     @cached_property
     def _real_form(self):
-        """The upper triangle of ``[[Re M', -Im M'], [Im M', Re M']]`` (``M'``: ``M`` without the
-        first translation), the rows of ``Re z, Im z`` and the data slots of their diagonal."""
+        """``K`` at zero multipliers: ``_M_real`` without the rows and columns of the first
+        translation (``Re t_0``, ``Im t_0``), so rows ``[Re t_1.., Re z, Im t_1.., Im z]``; the
+        rows of ``Re z, Im z`` and the data slots of their diagonal (stored: ``M_zz``'s diagonal
+        holds ``sum kappa > 0``)."""
         n = self.n
-        C = self.M[1:, 1:].tocoo()
+        keep = np.setdiff1d(np.arange(4 * n), [0, 2 * n])
+        F = self._M_real[keep][:, keep].tocsc()
+        F.eliminate_zeros()  # M's imaginary part stores zeros where M is real
+        F.sort_indices()
         N = 2 * n - 1
-        r, c, v = C.row, C.col, C.data
-        rows = np.concatenate([r, r + N, r, r + N])
-        cols = np.concatenate([c, c + N, c + N, c])
-        vals = np.concatenate([v.real, v.real, -v.imag, v.imag])
-        keep = (rows <= cols) & (vals != 0.0)
         zrows = np.stack([n - 1 + np.arange(n), N + n - 1 + np.arange(n)])
-        diag = zrows.ravel()
-        # the rotation diagonal must be stored even if zero: add explicit entries there
-        rows = np.concatenate([rows[keep], diag])
-        cols = np.concatenate([cols[keep], diag])
-        vals = np.concatenate([vals[keep], np.zeros(diag.size)])
-        U = sp.csc_matrix((vals, (rows, cols)), shape=(2 * N, 2 * N))
-        U.sum_duplicates()
-        U.sort_indices()
-        col = np.repeat(np.arange(2 * N), np.diff(U.indptr))
-        on_diag = np.flatnonzero(U.indices == col)  # data slots of the diagonal, one per column
-        slot_of = np.empty(2 * N, dtype=np.int64)
-        slot_of[col[on_diag]] = on_diag
-        return U, zrows, slot_of[diag]
+        return F, zrows, _diagonal_slots(F)[zrows.ravel()]
 
     @cached_property
     def _ordered_form(self):
@@ -214,9 +219,8 @@ class ChordalProblem:
         rotation diagonal, in the order of ``zrows.ravel()``."""
         import qdldl
 
-        U, zrows, _ = self._real_form
+        F, zrows, _ = self._real_form
         n, N = self.n, 2 * self.n - 1
-        F = (U + sp.triu(U, k=1).T).tocsc()
         e = self.graph.edges
         A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
         A = A + A.T
@@ -232,19 +236,17 @@ class ChordalProblem:
         Fp.sort_indices()
         iperm = np.empty_like(perm)
         iperm[perm] = np.arange(perm.size)
-        col = np.repeat(np.arange(Fp.shape[0]), np.diff(Fp.indptr))
-        on_diag = np.flatnonzero(Fp.indices == col)
-        slot_of = np.empty(Fp.shape[0], dtype=np.int64)
-        slot_of[col[on_diag]] = on_diag
-        return Fp, perm, slot_of[iperm[zrows.ravel()]]
+        return Fp, perm, _diagonal_slots(Fp)[iperm[zrows.ravel()]]
 
     @cached_property
     def _translation_factor(self):
-        """Cholesky factor of ``M_tt`` without the anchor's row: ``(factor, keep)``."""
+        """Cholesky factor of ``M_tt`` without the anchor's row, and what
+        :func:`optimal_translations` multiplies: ``(factor, keep, M_tz[keep], M_tt[keep, 0])``."""
         n = self.n
         keep = np.arange(1, n)
-        Mtt = self.M[:n, :n].real.tocsc()[keep][:, keep]
-        return SparseCholesky(sp.csc_matrix(Mtt), check=False), keep
+        Mtt = self.M[:n, :n].real.tocsc()[keep]
+        factor = SparseCholesky(sp.csc_matrix(Mtt[:, keep]), check=False)
+        return factor, keep, self.M[:n, n:][keep].tocsr(), Mtt[:, [0]].toarray()
 
 
 def chordal_problem(graph):
@@ -276,15 +278,19 @@ def chordal_problem(graph):
         )
     if graph.n < 2:
         raise GraphError(
-            f"chordal_problem: the graph has {graph.n} pose(s); certification needs at least 2"
+            f"chordal_problem: the graph has {graph.n} pose(s); a certificate of global optimality "
+            "needs at least 2 poses joined by edges"
         )
     count, labels = graph.components()
     if count > 1:
+        sizes = np.sort(np.bincount(labels))[::-1]
+        shown = ", ".join(map(str, sizes[:6].tolist())) + (", ..." if count > 6 else "")
         lone = int(graph.ids[np.flatnonzero(labels != 0)[0]])
         raise GraphError(
-            f"chordal_problem: the graph has {count} connected components (vertex id {lone} is "
-            "not connected to the first vertex); the chordal problem and its certificate are "
-            "defined per component — certify each one (PoseGraph.components gives the labels)"
+            f"chordal_problem: the graph is not connected: {count} components (sizes {shown}); "
+            f"the certificate, like LAGO, is defined on connected components: vertex id {lone} "
+            "is not connected to the first vertex — certify each component "
+            "(PoseGraph.components gives the labels), or add the missing edges"
         )
     kappa, tau = sesync_parameters(graph)
     z = graph.measurements
@@ -345,11 +351,8 @@ def from_complex(x):
 
 
 def _real_matrix(value, name, where, cols):
-    """A finite real float array of shape (k, cols), or an OptionError naming ``name``."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise OptionError(f"{where}: {name} must be a real array of shape (n, {cols})") from None
+    """A finite real float array of shape (k, cols), or a lagolib error naming ``name``."""
+    arr = real_array(value, name, where)
     if arr.ndim != 2 or arr.shape[1] != cols or not np.all(np.isfinite(arr)):
         raise OptionError(
             f"{where}: {name} must be a finite real array of shape (n, {cols}); got shape "
@@ -576,9 +579,8 @@ class ChordalNewtonSystem(ChordalSystem):
     def __init__(self, problem, *, fixed=()):
         super().__init__(problem, fixed=fixed)
         n, k = problem.n, self.free.size
-        cols = np.arange(3 * k)
         self._P_rows = np.stack([self.free, 2 * n + self.free], axis=1)  # Re t, Im t rows
-        self._P_cols = cols.reshape(k, 3)
+        self._P_cols = np.arange(3 * k).reshape(k, 3)
         self._z_re_rows, self._z_im_rows = n + self.free, 3 * n + self.free
         self._shape = (4 * n, 3 * k)
         self._pattern = None
@@ -602,7 +604,7 @@ class ChordalNewtonSystem(ChordalSystem):
         n = p.n
         x = to_complex(poses)
         Mx = p.M @ x
-        lam = (x[n:].conj() * Mx[n:]).real  # multipliers at the current point
+        lam = _multipliers(x, Mx, n)  # at the current point
         P = self._P(poses)
         if self._pattern is None:
             self._pattern = _FixedPattern(_template([P], p._M_real))
@@ -724,9 +726,8 @@ def optimal_translations(problem, z, t_anchor=0j):
             f"column of z); got shape {anchor.shape}"
         )
     anchor = np.broadcast_to(anchor.ravel(), (Z2.shape[1],))
-    factor, keep = p._translation_factor
-    M = p.M
-    rhs = -(M[:n, n:] @ Z2)[keep] - M[:n, :n][keep][:, [0]].toarray() * anchor[None, :]
+    factor, keep, Mtz, Mt0 = p._translation_factor
+    rhs = -(Mtz @ Z2) - Mt0 * anchor[None, :]
     r = Z2.shape[1]
     sol = factor.solve(np.concatenate([rhs.real, rhs.imag], axis=1))
     T = np.empty_like(Z2)
@@ -754,8 +755,7 @@ def multipliers(problem, x):
     """
     p = _problem(problem, "multipliers")
     x = _as_x(p, x, "multipliers")
-    n = p.n
-    return (x[n:].conj() * (p.M @ x)[n:]).real
+    return _multipliers(x, p.M @ x, p.n)
 
 
 def certificate_matrix(problem, x):
@@ -790,11 +790,10 @@ def reduced_certificate_matrix(problem, x):
     """
     p = _problem(problem, "reduced_certificate_matrix")
     lam = multipliers(p, x)
-    U, zrows, slots = p._real_form
-    data = U.data.copy()
+    F, zrows, slots = p._real_form
+    data = F.data.copy()
     data[slots] -= np.tile(lam, 2)  # S = M - blkdiag(0, diag(lambda))
-    U = sp.csc_matrix((data, U.indices, U.indptr), shape=U.shape)
-    return (U + sp.triu(U, k=1).T).tocsc(), zrows
+    return sp.csc_matrix((data, F.indices, F.indptr), shape=F.shape), zrows
 
 
 class _ShiftedFactor:
@@ -986,7 +985,7 @@ def certify(problem, poses, *, eta=None, eigenvalues=0):
     if n < 2:
         raise OptionError(f"{where}: the graph needs at least 2 poses; it has {n}")
     MX = p.M @ X
-    lam = np.sum(X[n:].conj() * MX[n:], axis=1).real  # lambda_i = Re(conj(z_i) (M x)_{n+i})
+    lam = _multipliers(X, MX, n)  # lambda_i = Re(conj(z_i) (M x)_{n+i})
     rgrad = MX[n:] - lam[:, None] * X[n:]  # the gradient's component along the spheres
     gradient = float(max(np.max(np.abs(rgrad)), np.max(np.abs(MX[:n]))))
     if k > n:
@@ -1125,7 +1124,7 @@ class LiftedSystem:
         """``H = 2 P^T (I_r ⊗ S) P``, ``b = 2 P^T vec(M X)`` and ``f`` at the lifted ``X``."""
         p, n = self.problem, self.problem.n
         MX = p.M @ X
-        lam = np.sum(X[n:].conj() * MX[n:], axis=1).real
+        lam = _multipliers(X, MX, n)
         S = p._M_real - sp.diags(np.concatenate([np.zeros(n), lam, np.zeros(n), lam]))
         Ps = self._P(X)
         if self._pattern is None:
@@ -1322,7 +1321,7 @@ def round_solution(problem, X):
     X = X[:, None] if X.ndim == 1 else X
     n = p.n
     Y = X[n:]
-    w, V = np.linalg.eigh(Y.conj().T @ Y)  # r x r: V's last column is the top right vector
+    _, V = np.linalg.eigh(Y.conj().T @ Y)  # r x r: V's last column is the top right vector
     u = Y @ V[:, -1]
     z = u / np.maximum(np.abs(u), 1e-300)
     t = optimal_translations(p, z, 0j)

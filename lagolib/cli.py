@@ -550,20 +550,10 @@ def _cmd_solve(args):
 # ----------------------------------------------------------------------------- certify
 def _check_certifiable(graph, path):
     """A certificate needs 2 or more poses in one connected graph: say so before any work."""
-    if graph.n < 2:
-        raise GraphError(
-            f"{path}: has {graph.n} pose(s); a certificate of global optimality needs at least 2 "
-            "poses joined by edges"
-        )
-    count, labels = graph.components()
-    if count > 1:
-        sizes = np.sort(np.bincount(labels))[::-1]
-        shown = ", ".join(map(str, sizes[:6].tolist())) + (", ..." if count > 6 else "")
-        raise GraphError(
-            f"{path}: the graph is not connected: {count} components (sizes {shown}); the "
-            "certificate, like LAGO, needs a connected graph — keep the largest component or add "
-            "the missing edges ('lagolib info' names the gaps)"
-        )
+    try:
+        certify.chordal_problem(graph)
+    except GraphError as exc:
+        raise GraphError(f"{path}: {str(exc).removeprefix('chordal_problem: ')}") from None
 
 
 def _value(v):
