@@ -76,6 +76,7 @@ from . import (
     uncertainty,
 )
 from .errors import (
+    BackendError,
     ConvergenceError,
     DatasetError,
     GaugeError,
@@ -160,6 +161,7 @@ __all__ = [
     "DatasetError",
     "GaugeError",
     "NotPositiveDefiniteError",
+    "BackendError",
     "ConvergenceError",
     "OptionError",
     "OptionTypeError",

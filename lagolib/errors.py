@@ -15,6 +15,7 @@ OptionTypeError            :class:`TypeError`
 DatasetError               :class:`LookupError` (a named dataset that cannot be provided)
 NotPositiveDefiniteError   :class:`ArithmeticError`
 ConvergenceError           :class:`RuntimeError`
+BackendError               :class:`RuntimeError` (a sparse solver failed for another reason)
 =========================  ===============================================================
 """
 
@@ -29,6 +30,7 @@ __all__ = [
     "GaugeError",
     "NotPositiveDefiniteError",
     "ConvergenceError",
+    "BackendError",
     "OptionError",
     "OptionTypeError",
     "LagolibWarning",
@@ -140,6 +142,14 @@ class ConvergenceError(LagolibError, RuntimeError):
         super().__init__(message)
         self.iterations = iterations
         self.residuals = list(residuals)
+
+
+class BackendError(LagolibError, RuntimeError):
+    """A sparse-solver backend (e.g. MKL PARDISO) failed for a reason other than the matrix.
+
+    Out of memory inside the solver, or an internal error it reports by number; the message
+    names the backend, its error code and what to try (usually ``backend="qdldl"``).
+    """
 
 
 class OptionError(LagolibError, ValueError):

@@ -148,7 +148,7 @@ class BLUE:
         return 0.5 * (P + P.T)
 
 
-def blue(H, z, information, *, backend="auto"):
+def blue(H, z, information, *, backend="auto", ordering=None):
     """Best linear unbiased estimator of ``x`` from ``z = H^T x + noise``.
 
     ``x̂ = (H Ω H^T)^-1 H Ω z``, ``P_x̂ = (H Ω H^T)^-1``, with ``Ω = P^-1`` the noise information
@@ -160,8 +160,10 @@ def blue(H, z, information, *, backend="auto"):
     z : array_like, shape (M,)
     information : scipy.sparse matrix or ndarray, shape (M, M) or (M,)
         A 1-D array is the diagonal of ``Ω``.
-    backend : {"auto", "qdldl", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "scipy"}
         Sparse Cholesky backend.
+    ordering : array_like of int, shape (N,), optional
+        Fill-reducing ordering for PARDISO (:class:`lagolib.linalg.SparseCholesky`).
 
     Returns
     -------
@@ -186,7 +188,7 @@ def blue(H, z, information, *, backend="auto"):
     """
     backend = check_choice(backend, "backend", "blue", ("auto",) + BACKENDS)
     info, eta = information_form(H, z, information)
-    factor = SparseCholesky(info, backend)
+    factor = SparseCholesky(info, backend, ordering=ordering)
     return BLUE(factor.solve(eta), info, factor)
 
 

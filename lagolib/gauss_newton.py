@@ -55,7 +55,14 @@ from .graph import (
     first_bad_information,
     vertex_rows,
 )
-from .linalg import BACKENDS, SparseCholesky, pcg
+from .linalg import (
+    BACKENDS,
+    SparseCholesky,
+    _auto_backend,
+    expand_ordering,
+    fill_reducing_ordering,
+    pcg,
+)
 
 __all__ = [
     "Prior",
@@ -373,6 +380,11 @@ def reduce_system(graph, H, b, fixed):
     return H[rows][:, rows], np.asarray(b)[rows]
 
 
+#: Edges per chunk in :meth:`LinearSystem.assemble`: the 6x6 products of 2^15 edges (9 MB) stay
+#: small, so a 10^6-pose graph is assembled without gigabyte temporaries.
+_CHUNK = 2**15
+
+
 class LinearSystem:
     """``H`` and ``b`` for all constraints at once, in a sparsity pattern computed once.
 
@@ -419,41 +431,93 @@ class LinearSystem:
         red = np.full(n, -1, dtype=np.int64)
         red[self.free] = np.arange(self.free.size)
         self._red = red
-        N = self.N = 3 * self.free.size
-        e = graph.edges
+        self.N = 3 * self.free.size
         comp = np.arange(3)
-        # rows of the 6 unknowns [x_i; x_j] of every edge in H, -1 where the pose is fixed
-        blk = red[np.repeat(e, 3, axis=1)]
-        rows6 = np.where(blk >= 0, 3 * blk + np.tile(comp, 2), -1)  # (m, 6)
         self._prior_idx = vertex_rows(graph, [p.vertex for p in self.priors], "prior")
         self._prior_mean = np.array([p.mean for p in self.priors], dtype=float).reshape(-1, 3)
         self._prior_info = np.array([p.information for p in self.priors], float).reshape(-1, 3, 3)
+        e = red[graph.edges]  # block of each edge's poses, -1 where fixed; (m, 2)
         pblk = red[self._prior_idx]
-        rows3 = np.where(pblk[:, None] >= 0, 3 * pblk[:, None] + comp, -1)  # (p, 3)
+        self._build_pattern(e, pblk)
+        # where each edge's / prior's J^T Omega e goes in b: N (a trash row) where the pose is fixed
+        N = self.N
+        self._rows_b_e = np.where(e[:, :, None] >= 0, 3 * e[:, :, None] + comp, N)  # (m, 2, 3)
+        self._rows_b_p = np.where(pblk[:, None] >= 0, 3 * pblk[:, None] + comp, N)  # (p, 3)
 
-        def entries(rows):
-            R = np.broadcast_to(rows[:, :, None], rows.shape + rows.shape[1:])
-            C = np.broadcast_to(rows[:, None, :], R.shape)
-            keep = ((R >= 0) & (C >= 0)).ravel()
-            return keep, (R.ravel() * N + C.ravel())[keep]
+    def _build_pattern(self, e, pblk):
+        """The CSR pattern of ``H`` from its 3x3 blocks, and where every Jacobian product goes.
 
-        self._keep_e, keys_e = entries(rows6)
-        self._keep_p, keys_p = entries(rows3)
-        diag = 3 * np.arange(self.free.size)[:, None] + comp  # every free pose's diagonal block
-        _, keys_d = entries(diag)
-        keys = np.concatenate([keys_e, keys_p, keys_d])
-        uniq, inverse = np.unique(keys, return_inverse=True)
-        self._slot = inverse[: keys_e.size + keys_p.size]
-        self.nnz = uniq.size
-        rows, cols = np.divmod(uniq, N) if N else (uniq, uniq)
-        self._indptr = np.zeros(N + 1, dtype=np.int32)
-        np.cumsum(np.bincount(rows, minlength=N), out=self._indptr[1:])
-        self._indices = cols.astype(np.int32)
-        self._diag_slot = np.searchsorted(uniq, np.arange(N) * (N + 1))
-        self._rows_b_e = rows6.ravel()
-        self._keep_b_e = self._rows_b_e >= 0
-        self._rows_b_p = rows3.ravel()
-        self._keep_b_p = self._rows_b_p >= 0
+        The non-zero blocks are ``(i, i), (i, j), (j, i), (j, j)`` of every edge, ``(k, k)`` of
+        every prior and of every free pose: one ``np.unique`` over ``4 m + p + k`` block keys.
+        Each block ``u`` of block-row ``r`` (the ``t``-th of the ``c_r`` blocks in that row)
+        holds the scalar entries ``(3 r + a, 3 col_u + c)`` at CSR position
+        ``9 ptr_r + 3 a c_r + 3 t + c``, so the scalar pattern is written out, never sorted.
+        Blocks of fixed poses go to one extra "trash" slot past the end, so assembly needs no
+        masks.
+        """
+        k = self.free.size
+        q = np.array([[0, 0], [0, 1], [1, 0], [1, 1]])  # the four blocks of an edge
+        R, C = e[:, q[:, 0]], e[:, q[:, 1]]  # (m, 4)
+        keep_e = (R >= 0) & (C >= 0)
+        keep_p = pblk >= 0
+        keys = np.concatenate(
+            [(R * k + C)[keep_e], pblk[keep_p] * (k + 1), np.arange(k, dtype=np.int64) * (k + 1)]
+        )
+        del R, C
+        blocks, inverse = np.unique(keys, return_inverse=True)
+        del keys
+        brow, bcol = np.divmod(blocks, k) if k else (blocks, blocks)
+        self._blocks = (brow, bcol)  # the pose-level pattern, for the fill-reducing ordering
+        bptr = np.zeros(k + 1, dtype=np.int64)
+        np.cumsum(np.bincount(brow, minlength=k), out=bptr[1:])
+        cnt = np.diff(bptr)
+        self.nnz = nnz = 9 * blocks.size
+        itype = np.int32 if nnz + 1 < 2**31 else np.int64
+        a3 = np.arange(3)
+        self._indptr = np.append((9 * bptr[:-1, None] + 3 * a3 * cnt[:, None]).ravel(), nnz)
+        self._indptr = self._indptr.astype(itype)
+        base = 9 * bptr[brow] + 3 * (np.arange(blocks.size) - bptr[brow])  # entry (0, 0) of u
+        stride = 3 * cnt[brow]  # from row a of a block to row a + 1
+        self._indices = np.empty(nnz, dtype=itype)
+        for a in range(3):
+            for c in range(3):
+                self._indices[base + a * stride + c] = 3 * bcol + c
+        # entry (a, c) of each edge's four blocks and each prior's block: its CSR slot or `nnz`
+        ue = np.zeros(keep_e.shape, dtype=np.int64)  # block 0 where dropped: masked below
+        ue[keep_e] = inverse[: int(keep_e.sum())]
+        base, stride = np.append(base, nnz), np.append(stride, 0)  # a block past the end for k = 0
+        up = inverse[int(keep_e.sum()) : int(keep_e.sum()) + int(keep_p.sum())]
+        slot = np.empty(keep_e.shape + (3, 3), dtype=itype)  # (m, 4, 3, 3)
+        self._slot_p = np.full(pblk.shape + (3, 3), nnz, dtype=itype)  # (p, 3, 3)
+        be, se = np.where(keep_e, base[ue], nnz), np.where(keep_e, stride[ue], 0)
+        for a in range(3):
+            for c in range(3):
+                slot[:, :, a, c] = np.where(keep_e, be + a * se + c, nnz)
+                self._slot_p[keep_p, a, c] = base[up] + a * stride[up] + c
+        # in the layout of an edge's 6x6 J^T Omega J: rows 3 qr + a, columns 3 qc + c
+        self._slot_e = np.ascontiguousarray(
+            slot.reshape(-1, 2, 2, 3, 3).transpose(0, 1, 3, 2, 4).reshape(-1, 6, 6)
+        )
+        del slot
+        first = np.searchsorted(blocks, np.arange(k) * (k + 1)) - bptr[:-1]  # rank of (r, r)
+        self._diag_slot = (
+            9 * bptr[:-1, None] + 3 * a3 * cnt[:, None] + 3 * first[:, None] + a3
+        ).ravel()
+
+    def ordering(self):
+        """A nested-dissection ordering of ``H``'s rows, from the pose graph (None without MKL).
+
+        METIS runs on the ``k x k`` pattern of the free poses' blocks
+        (:func:`lagolib.linalg.fill_reducing_ordering`) and each pose's three rows follow it —
+        cheaper than ordering the ``3k`` rows and as good.
+        """
+        k = self.free.size
+        brow, bcol = self._blocks
+        pattern = sp.csr_matrix((np.ones(brow.size), (brow, bcol)), shape=(k, k))
+        perm = fill_reducing_ordering(pattern)
+        if perm is None:
+            return None
+        return expand_ordering(perm, 3 * np.arange(k)[:, None] + np.arange(3))
 
     def _edge_weights(self):
         """The weight of every edge's residual: its information matrix, shape (m, 3, 3)."""
@@ -496,22 +560,27 @@ class LinearSystem:
         """
         e, J, ep, Jp = self._terms(poses)
         W = self._edge_weights()  # Omega_ij, (m, k, k)
-        OJ = W @ J  # (m, k, 6)
-        M = np.swapaxes(J, 1, 2) @ OJ  # J^T Omega J, (m, 6, 6)
-        M = 0.5 * (M + np.swapaxes(M, 1, 2))
+        data = np.zeros(self.nnz + 1)  # the last slot takes the blocks of fixed poses
+        b = np.zeros(self.N + 1)
+        objective = 0.0
+        for lo in range(0, J.shape[0], _CHUNK):  # chunks keep the temporaries small
+            c = slice(lo, lo + _CHUNK)
+            OJ = W[c] @ J[c]  # Omega J, (c, k, 6)
+            M = np.swapaxes(J[c], 1, 2) @ OJ  # J^T Omega J, (c, 6, 6)
+            M += np.swapaxes(M, 1, 2)  # exactly symmetric, as H is
+            M *= 0.5
+            np.add.at(data, self._slot_e[c].ravel(), M.ravel())
+            np.add.at(b, self._rows_b_e[c].ravel(), np.einsum("kab,ka->kb", OJ, e[c]).ravel())
+            objective += float(np.einsum("ka,kab,kb->", e[c], W[c], e[c]))
         OJp = self._prior_info @ Jp
         Mp = np.swapaxes(Jp, 1, 2) @ OJp
         Mp = 0.5 * (Mp + np.swapaxes(Mp, 1, 2))
-        w = np.concatenate([M.ravel()[self._keep_e], Mp.ravel()[self._keep_p]])
-        data = np.bincount(self._slot, weights=w, minlength=self.nnz)
-        H = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.N, self.N))
-        ge = np.einsum("kab,ka->kb", OJ, e).ravel()  # J^T Omega e, (m, 6)
-        gp = np.einsum("kab,ka->kb", OJp, ep).ravel()
-        b = np.bincount(self._rows_b_e[self._keep_b_e], ge[self._keep_b_e], minlength=self.N)
-        b += np.bincount(self._rows_b_p[self._keep_b_p], gp[self._keep_b_p], minlength=self.N)
-        objective = float(
-            np.einsum("ka,kab,kb->", e, W, e) + np.einsum("ka,kab,kb->", ep, self._prior_info, ep)
-        )
+        np.add.at(data, self._slot_p.ravel(), Mp.ravel())
+        np.add.at(b, self._rows_b_p.ravel(), np.einsum("kab,ka->kb", OJp, ep).ravel())
+        objective += float(np.einsum("ka,kab,kb->", ep, self._prior_info, ep))
+        H = sp.csr_matrix((data[: self.nnz], self._indices, self._indptr), shape=(self.N, self.N))
+        H.has_sorted_indices = True  # by construction; spares the backends an O(nnz) check
+        b = b[: self.N]
         return H, b, objective
 
     def damped(self, H, lam):
@@ -689,10 +758,15 @@ class _LevenbergMarquardtDamping:
 
 
 class _LinearSolver:
-    """``solve(H, rhs)``: sparse Cholesky (one symbolic analysis, refactored) or PCG."""
+    """``solve(H, rhs)``: sparse Cholesky (one symbolic analysis, refactored) or PCG.
 
-    def __init__(self, kind, backend):
+    ``ordering``, when given, is called once (with the first ``H``'s size) for a fill-reducing
+    ordering handed to PARDISO: :meth:`LinearSystem.ordering`, the pose graph's nested dissection.
+    """
+
+    def __init__(self, kind, backend, ordering=None):
         self.kind, self.backend = kind, backend
+        self._ordering = ordering
         self.factor = None
         self.iterations = []  # PCG iterations per solve
 
@@ -702,7 +776,9 @@ class _LinearSolver:
             self.iterations.append(out.iterations)
             return out.x
         if self.factor is None:
-            self.factor = SparseCholesky(H, self.backend, check=False)
+            backend = _auto_backend(H.shape[0]) if self.backend == "auto" else self.backend
+            order = self._ordering() if self._ordering and backend == "pardiso" else None
+            self.factor = SparseCholesky(H, backend, check=False, ordering=order)
         else:
             self.factor.refactor(H)
         return self.factor.solve(rhs)
@@ -829,7 +905,7 @@ def optimize(
     linear_solver : {"cholesky", "pcg"}
         Sparse Cholesky (:class:`lagolib.linalg.SparseCholesky`) or block-Jacobi
         preconditioned conjugate gradients (:func:`lagolib.linalg.pcg`, relative residual 1e-10).
-    backend : {"auto", "qdldl", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "scipy"}
         Cholesky backend.
     lambda_initial : float
         LM's first damping; finite and ``> 0``.
@@ -887,7 +963,7 @@ def optimize(
     fixed, priors = resolve_gauge(graph, fixed, prior)
     x = as_graph_poses(graph, initial, "initial", "initial guess")
     system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
-    solve = _LinearSolver(linear_solver, backend)
+    solve = _LinearSolver(linear_solver, backend, system.ordering)
     if method == "gn":
         control = _GaussNewtonSteps(max_backtracks)
     else:

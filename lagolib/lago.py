@@ -59,6 +59,7 @@ from .checks import check_choice, check_real
 from .errors import LagolibWarning, OptionTypeError
 from .estimation import BLUE, blue, joint_information
 from .graph import PoseGraph, vertex_rows
+from .linalg import BACKENDS, expand_ordering
 from .topology import (
     SpanningTree,
     _anchor_row,
@@ -338,7 +339,7 @@ def phase1_orientations(graph, delta_bar, *, anchor=None, omega_delta=None, back
         Vertex id with ``θ = 0`` (default: the smallest).
     omega_delta : ndarray, shape (m,), optional
         ``P_δ^-1`` per edge (frame-free); default from :func:`split_information`.
-    backend : {"auto", "qdldl", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "scipy"}
 
     Returns
     -------
@@ -387,7 +388,7 @@ def positions_given_orientations(graph, theta, *, anchor=None, Omega_Delta=None,
     Omega_Delta : ndarray, shape (m, 2, 2), optional
         ``P_Δ^-1`` per edge in the frame of its tail pose ``i``; default from
         :func:`split_information`.
-    backend : {"auto", "qdldl", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "scipy"}
 
     Returns
     -------
@@ -477,7 +478,7 @@ def phase2_relative_positions(graph, theta_hat, *, anchor=None, Omega_Delta=None
     return Phase2(z, info, Delta_g, J, W)
 
 
-def phase3_poses(graph, phase2, *, anchor=None, backend="auto"):
+def phase3_poses(graph, phase2, *, anchor=None, backend="auto", pose_ordering=None):
     """Phase 3: the BLUE of ``p = [ρ; θ]`` from ``z = B^T p`` (Carlone et al. 2011, eq. 12, 15).
 
     ``p* = (B P_z^-1 B^T)^-1 B P_z^-1 z`` with ``B = [[A2, 0], [0, I_n]]``; ``I_p* = B P_z^-1 B^T``.
@@ -488,7 +489,11 @@ def phase3_poses(graph, phase2, *, anchor=None, backend="auto"):
     graph : PoseGraph
     phase2 : Phase2
     anchor : int, optional
-    backend : {"auto", "qdldl", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "scipy"}
+    pose_ordering : ndarray of int, shape (n,), optional
+        A fill-reducing order of the free poses — phase 1's, whose matrix is the pose graph's
+        weighted Laplacian — expanded to each pose's three rows for PARDISO, so that METIS
+        runs once for LAGO's two factorizations.
 
     Returns
     -------
@@ -499,7 +504,11 @@ def phase3_poses(graph, phase2, *, anchor=None, backend="auto"):
     A2 = position_incidence_matrix(reduced_incidence_matrix(graph, anchor))
     n = A2.shape[0] // 2
     B = sp.block_diag([A2, sp.identity(n)], format="csr")  # eq. (12)
-    return blue(B, phase2.z, phase2.information, backend=backend)  # eq. (15)
+    order = None
+    if pose_ordering is not None:
+        r = np.arange(n)
+        order = expand_ordering(pose_ordering, np.column_stack([2 * r, 2 * r + 1, 2 * n + r]))
+    return blue(B, phase2.z, phase2.information, backend=backend, ordering=order)  # eq. (15)
 
 
 # --------------------------------------------------------------------------- LAGO
@@ -600,7 +609,7 @@ def lago(graph, tree="min_uncertainty", anchor=None, *, margin_warning=0.1, back
     margin_warning : float
         Warn (:class:`RegularizationWarning`) when chords' cycle sums lie within this many turns
         of the rounding boundary (:attr:`Regularization.margin`); 0 turns the warning off.
-    backend : {"auto", "qdldl", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "scipy"}
         Sparse Cholesky used by phases 1 and 3.
 
     Returns
@@ -635,7 +644,7 @@ def lago(graph, tree="min_uncertainty", anchor=None, *, margin_warning=0.1, back
     if not isinstance(graph, PoseGraph):
         raise OptionTypeError(f"lago needs a PoseGraph; got {type(graph).__name__}")
     margin_warning = check_real(margin_warning, "margin_warning", "lago", minimum=0.0, maximum=0.5)
-    check_choice(backend, "backend", "lago", ("auto", "qdldl", "scipy"))
+    check_choice(backend, "backend", "lago", ("auto",) + BACKENDS)
     root = _anchor_row(graph, anchor)
     anchor_id = int(graph.ids[root])
     Omega_Delta, omega_delta = split_information(graph)  # frame i, eq. (4)
@@ -648,7 +657,9 @@ def lago(graph, tree="min_uncertainty", anchor=None, *, margin_warning=0.1, back
     t2 = time.perf_counter()
     p2 = phase2_relative_positions(graph, p1, anchor=anchor_id, Omega_Delta=Omega_Delta)
     t3 = time.perf_counter()
-    p3 = phase3_poses(graph, p2, anchor=anchor_id, backend=backend)
+    p3 = phase3_poses(  # METIS's order of phase 1 (PARDISO only) serves phase 3 too
+        graph, p2, anchor=anchor_id, backend=backend, pose_ordering=p1.factor.ordering
+    )
     t4 = time.perf_counter()
     free = _free_rows(graph, root)
     n = free.size

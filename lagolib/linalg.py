@@ -1,4 +1,4 @@
-"""Sparse symmetric positive-definite solves: Cholesky with pluggable backends, and PCG.
+"""Sparse symmetric positive-definite solves: Cholesky with pluggable backends, selected inversion, PCG.
 
 The lecture notes ("Consequences of the Sparsity") name the two ways to solve ``H dx = -b``:
 
@@ -6,20 +6,30 @@ The lecture notes ("Consequences of the Sparsity") name the two ways to solve ``
    fill-reducing ordering and then solves by two triangular substitutions.  Backends:
 
    ``"qdldl"``
-       The QDLDL ``L D L^T`` factorization (OSQP's) with an AMD ordering; the symbolic analysis is
-       kept, so :meth:`SparseCholesky.refactor` on a matrix with the same pattern is cheaper.
+       The QDLDL ``L D L^T`` factorization (OSQP's) with an AMD ordering: simplicial (one column
+       at a time), small, always installed, and the one whose factor ``L`` is readable — the
+       teaching default and the factor of :func:`selected_inverse`.
+   ``"pardiso"``
+       Intel MKL PARDISO (``pip install "lagolib[fast]"`` installs MKL from its wheel):
+       supernodal, multithreaded, with a nested-dissection (METIS) ordering.  Its symbolic
+       analysis — the ordering and the supernode structure — is computed once per sparsity
+       pattern and reused by every :meth:`SparseCholesky.refactor`.
    ``"scipy"``
        SuperLU from :mod:`scipy.sparse.linalg` in symmetric mode (minimum degree on ``A + A^T``,
        diagonal pivots).  Always available.
 
-   ``backend="auto"`` takes qdldl when it is installed (it is a dependency of lagolib) — on
-   city10000's 30k x 30k system it is about 3x faster than SuperLU here
-   (``benchmarks/bench_gauss_newton.py`` prints both).
+   ``backend="auto"`` takes qdldl for systems below :data:`PARDISO_MIN_SIZE` rows and PARDISO
+   above, when it is installed: on the 3 x 10^6-row system of a 10^6-pose graph PARDISO's
+   factorization is about 10x faster than qdldl's (``benchmarks/bench_scale.py``).
 
 2. **conjugate gradients** — :func:`pcg`, written out so that a chapter can count its
    iterations, with a Jacobi or 3x3 block-Jacobi preconditioner.
 
-No function here forms a dense matrix.
+:func:`selected_inverse` computes the entries of ``H^-1`` on the sparsity pattern of ``L`` —
+every diagonal block, every marginal covariance — by Takahashi's recurrences, in time comparable
+to the factorization.
+
+No function here forms a dense matrix of the system's size.
 """
 
 from __future__ import annotations
@@ -31,21 +41,71 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .checks import check_bool, check_choice, check_int, check_real, real_array
-from .errors import NotPositiveDefiniteError, OptionError, OptionTypeError
+from .errors import BackendError, NotPositiveDefiniteError, OptionError, OptionTypeError
 
 __all__ = [
     "SparseCholesky",
     "available_backends",
     "solve_spd",
+    "selected_inverse",
+    "SelectedInverse",
     "pcg",
     "PCGResult",
+    "PARDISO_MIN_SIZE",
+    "fill_reducing_ordering",
+    "expand_ordering",
 ]
 
-BACKENDS = ("qdldl", "scipy")
+BACKENDS = ("qdldl", "pardiso", "scipy")
+
+#: ``backend="auto"`` uses PARDISO (when installed) for systems of at least this many rows, qdldl
+#: below.  Measured here (``benchmarks/bench_scale.py``): on M3500's 10 497 rows qdldl's
+#: factorization takes about 40 ms and PARDISO's refactorization about 15 ms plus a first
+#: analysis of about 60 ms; above ~10^4 rows PARDISO wins every Gauss–Newton run.
+PARDISO_MIN_SIZE = 20_000
+
+_MKL = {}  # the loaded MKL runtime, found once: {"lib": CDLL or None, "why": str}
+
+
+def _mkl_runtime():
+    """Intel MKL's single dynamic library (``mkl_rt``), or None with the reason in ``_MKL["why"]``.
+
+    Looked for in ``$LAGOLIB_MKL_RT`` (a path), then beside this Python (where the ``mkl`` wheel
+    installs it: ``<prefix>/lib/libmkl_rt.so.*``), then on the system's library path.
+    ``LAGOLIB_MKL_RT=off`` hides MKL, as on a machine without it (the tests run both ways).
+    """
+    if "lib" in _MKL:
+        return _MKL["lib"]
+    import os
+
+    if os.environ.get("LAGOLIB_MKL_RT", "").lower() == "off":
+        _MKL.update(lib=None, why="LAGOLIB_MKL_RT=off hides it")
+        return None
+    import ctypes
+    import ctypes.util
+    import glob
+    import site
+    import sys
+
+    candidates = [os.environ.get("LAGOLIB_MKL_RT", "")]
+    for root in (sys.prefix, site.USER_BASE or ""):
+        for sub in ("lib", "Library/bin"):
+            candidates += sorted(glob.glob(os.path.join(root, sub, "*mkl_rt*")), key=len)
+    candidates += [ctypes.util.find_library("mkl_rt") or ""]
+    lib, why = None, 'MKL is not installed (pip install "lagolib[fast]")'
+    for path in filter(None, candidates):
+        try:
+            lib = ctypes.CDLL(path)
+            lib.pardiso  # noqa: B018 - the symbol must be there
+            break
+        except (OSError, AttributeError) as exc:
+            lib, why = None, f"MKL's runtime {path} could not be loaded: {exc}"
+    _MKL.update(lib=lib, why=why)
+    return lib
 
 
 def available_backends():
-    """The Cholesky backends importable here, fastest first (``"scipy"`` is always there)."""
+    """The Cholesky backends importable here (``"qdldl"`` and ``"scipy"`` are always there)."""
     out = []
     try:
         import qdldl  # noqa: F401
@@ -53,8 +113,18 @@ def available_backends():
         out.append("qdldl")
     except ImportError:  # pragma: no cover - qdldl is a dependency
         pass
+    if _mkl_runtime() is not None:
+        out.append("pardiso")
     out.append("scipy")
     return tuple(out)
+
+
+def _auto_backend(N):
+    """``backend="auto"`` for a system of ``N`` rows (see :data:`PARDISO_MIN_SIZE`)."""
+    have = available_backends()
+    if N >= PARDISO_MIN_SIZE and "pardiso" in have:
+        return "pardiso"
+    return have[0]
 
 
 def _check_square(H, where="SparseCholesky", *, check=True):
@@ -91,26 +161,177 @@ def _check_rhs(b, N, where, *, columns=True, name="b"):
     return b
 
 
+_PARDISO_ERRORS = {
+    -1: "input inconsistent",
+    -2: "not enough memory",
+    -3: "reordering problem",
+    -4: "zero or negative pivot",
+    -5: "unclassified (internal) error",
+    -6: "reordering failed",
+    -7: "diagonal matrix is singular",
+    -8: "32-bit integer overflow problem",
+    -9: "not enough memory for out-of-core",
+    -10: "error opening out-of-core files",
+    -11: "read/write error with out-of-core files",
+    -12: "not enough memory (pardiso_64 required)",
+}
+
+
+def _pardiso_release(lib, pt, n):
+    """Free PARDISO's internal memory for one handle ``pt`` (phase -1)."""
+    import ctypes
+
+    i32 = ctypes.c_int32
+    dummy_i = np.zeros(1, dtype=np.int32)
+    dummy_d = np.zeros(1)
+    iparm = np.zeros(64, dtype=np.int32)
+    err = i32(0)
+    ip = dummy_i.ctypes.data_as(ctypes.POINTER(i32))
+    dp = dummy_d.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+    one = ctypes.byref(i32(1))
+    lib.pardiso(
+        pt.ctypes.data_as(ctypes.c_void_p), one, one, ctypes.byref(i32(2)),
+        ctypes.byref(i32(-1)), ctypes.byref(i32(n)), dp, ip, ip, ip, one,
+        iparm.ctypes.data_as(ctypes.POINTER(i32)), ctypes.byref(i32(0)), dp, dp, ctypes.byref(err),
+    )  # fmt: skip
+
+
+class _Pardiso:
+    """MKL PARDISO on one sparsity pattern of a real SPD matrix (``mtype = 2``).
+
+    Phase 11 — the nested-dissection (METIS) ordering and the supernodal symbolic factorization —
+    runs once, in the constructor; :meth:`factor` (phase 22) and :meth:`solve` (phase 33) reuse
+    it.  ``U`` is the upper triangle in CSR with int32 indices (PARDISO's 32-bit interface).
+    ``ordering`` (row ``k`` of the factor is row ``ordering[k]`` of ``U``) replaces METIS;
+    otherwise METIS's ordering is returned in :attr:`ordering`.
+    """
+
+    def __init__(self, U, ordering=None):
+        import ctypes
+        import weakref
+
+        self._lib = _mkl_runtime()
+        self.n = U.shape[0]
+        self.pt = np.zeros(64, dtype=np.int64)  # PARDISO's opaque handle
+        self.iparm = np.zeros(64, dtype=np.int32)
+        self._lib.pardisoinit(
+            self.pt.ctypes.data_as(ctypes.c_void_p),
+            ctypes.byref(ctypes.c_int32(2)),
+            self.iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
+        )
+        self.iparm[1] = 2  # nested dissection from METIS
+        self.iparm[7] = 0  # no iterative refinement: a Cholesky solve is exact to rounding
+        self.iparm[17] = -1  # report nnz(L) ...
+        self.iparm[18] = -1  # ... and the factorization's Mflop
+        self.iparm[26] = 0  # no matrix check (lagolib checks H itself)
+        self.iparm[34] = 1  # zero-based indices
+        if ordering is None:
+            self.iparm[4] = 2  # return METIS's ordering in perm
+            self.ordering = np.zeros(self.n, dtype=np.int32)
+        else:
+            self.iparm[4] = 1  # use the ordering given in perm
+            self.ordering = np.ascontiguousarray(ordering, dtype=np.int32)
+        self.indptr, self.indices = U.indptr, U.indices
+        self._finalizer = weakref.finalize(self, _pardiso_release, self._lib, self.pt, self.n)
+        self._call(11, U.data)
+
+    def _call(self, phase, data, b=None):
+        import ctypes
+
+        i32, f64 = ctypes.c_int32, ctypes.c_double
+        if b is None:
+            b = x = np.zeros(1)
+            nrhs = 1
+        else:
+            x = np.empty_like(b)
+            nrhs = 1 if b.ndim == 1 else b.shape[1]
+        err = i32(0)
+        one = ctypes.byref(i32(1))
+        self._lib.pardiso(
+            self.pt.ctypes.data_as(ctypes.c_void_p), one, one, ctypes.byref(i32(2)),
+            ctypes.byref(i32(phase)), ctypes.byref(i32(self.n)),
+            data.ctypes.data_as(ctypes.POINTER(f64)),
+            self.indptr.ctypes.data_as(ctypes.POINTER(i32)),
+            self.indices.ctypes.data_as(ctypes.POINTER(i32)),
+            self.ordering.ctypes.data_as(ctypes.POINTER(i32)), ctypes.byref(i32(nrhs)),
+            self.iparm.ctypes.data_as(ctypes.POINTER(i32)),
+            ctypes.byref(i32(0)), b.ctypes.data_as(ctypes.POINTER(f64)),
+            x.ctypes.data_as(ctypes.POINTER(f64)), ctypes.byref(err),
+        )  # fmt: skip
+        code = err.value
+        if code == -4 or code == -7:
+            raise NotPositiveDefiniteError(
+                f"sparse Cholesky (PARDISO): {_PARDISO_ERRORS[code]}; the matrix is singular or "
+                "indefinite"
+            )
+        if code:
+            what = _PARDISO_ERRORS.get(code, "unknown error")
+            hint = "free memory or " if code in (-2, -9, -12) else ""
+            raise BackendError(
+                f"sparse Cholesky (PARDISO): error {code} ({what}) in phase {phase}; "
+                f"{hint}use backend='qdldl'"
+            )
+        return x
+
+    def factor(self, data):
+        """Numerical factorization (phase 22) of the values ``data`` on the analysed pattern."""
+        self._call(22, data)
+
+    def solve(self, data, b):
+        """Forward and back substitution (phase 33); ``b`` of shape (N,) or (N, k)."""
+        B = np.asfortranarray(b, dtype=float)  # PARDISO reads k right-hand sides column by column
+        return self._call(33, data, B)
+
+    @property
+    def nnz_L(self):
+        """Entries of the factor ``L`` (diagonal included), from PARDISO's report."""
+        return int(self.iparm[17])
+
+    @property
+    def mflops(self):
+        """Mflop of one numerical factorization, from PARDISO's report."""
+        return int(self.iparm[18])
+
+
 class SparseCholesky:
     """Factorization of a sparse symmetric positive-definite matrix, for repeated solves.
 
     Parameters
     ----------
     H : scipy.sparse matrix, shape (N, N)
-        Symmetric positive definite; both triangles stored (only the upper one is read by qdldl).
-    backend : {"auto", "qdldl", "scipy"}
+        Symmetric positive definite; both triangles stored (only the upper one is read).
+    backend : {"auto", "qdldl", "pardiso", "scipy"}
+        ``"auto"``: PARDISO from :data:`PARDISO_MIN_SIZE` rows up when MKL is installed
+        (``pip install "lagolib[fast]"``), qdldl otherwise.
     check : bool
         Check that ``H`` (and every later one given to :meth:`refactor`) is finite and
         symmetric — ``O(nnz)``; lagolib's optimizer, which builds ``H`` symmetric, skips it.
+    ordering : array_like of int, shape (N,), optional
+        A fill-reducing ordering for PARDISO (row ``k`` of the factor is row ``ordering[k]`` of
+        ``H``), e.g. a pose graph's nested dissection expanded to its unknowns
+        (:func:`expand_ordering`), so that METIS runs once per graph, not once per matrix.
+        qdldl and SuperLU compute their own (AMD, MMD).
+
+    Attributes
+    ----------
+    backend : str
+        The backend in use (``"auto"`` resolved).
+    ordering : ndarray of int or None
+        PARDISO's ordering after the first factorization (the one given, or METIS's).
+    nnz_L : int
+        Entries of the factor ``L``, diagonal included: the fill its ordering leaves (0 for
+        SuperLU, which stores ``L`` and ``U`` together).
 
     Raises
     ------
     OptionError, OptionTypeError
-        ``H`` is not a square, finite, symmetric sparse matrix; unknown ``backend``.
+        ``H`` is not a square, finite, symmetric sparse matrix; unknown or unavailable ``backend``.
     NotPositiveDefiniteError
         If a pivot of the factorization is not positive: ``H`` is singular or indefinite
         (for a pose graph: a pose or component without a gauge, see
         :func:`lagolib.gauss_newton.check_gauge`).
+    BackendError
+        PARDISO failed for another reason (out of memory, an internal error).
 
     Examples
     --------
@@ -120,15 +341,25 @@ class SparseCholesky:
     array([0.090909, 0.636364])
     """
 
-    def __init__(self, H, backend="auto", *, check=True):
+    def __init__(self, H, backend="auto", *, check=True, ordering=None):
         backend = check_choice(backend, "backend", "SparseCholesky", ("auto",) + BACKENDS)
+        if ordering is not None:
+            ordering = _check_ordering(ordering, H.shape[0] if hasattr(H, "shape") else -1)
         self._check = check_bool(check, "check", "SparseCholesky")
         _check_square(H, "SparseCholesky", check=False)
         if backend == "auto":
-            backend = available_backends()[0]
+            backend = _auto_backend(H.shape[0])
+        elif backend == "pardiso" and _mkl_runtime() is None:
+            raise OptionError(
+                f"SparseCholesky: backend='pardiso' needs Intel MKL, but {_MKL['why']}; install it "
+                "with pip install \"lagolib[fast]\" or use backend='qdldl'"
+            )
         self.backend = backend
         self.shape = H.shape
+        self.ordering = ordering
+        self.nnz_L = 0
         self._solver = None
+        self._pattern = None
         self.refactor(H)
 
     def refactor(self, H):
@@ -138,32 +369,73 @@ class SparseCholesky:
             raise OptionError(f"SparseCholesky.refactor needs shape {self.shape}; got {H.shape}")
         if self.shape[0] == 0:
             return self
-        if self.backend == "qdldl":
-            self._factor_qdldl(H)
-        else:
+        if self.backend == "scipy":
             self._factor_scipy(H)
-        return self
-
-    def _factor_qdldl(self, H):
-        import qdldl
-
-        U = sp.triu(H, format="csc")
-        try:
+        elif self.backend == "pardiso":
+            self._factor_pardiso(H)
+        else:
+            U = sp.triu(H, format="csc")  # qdldl reads the upper triangle, by columns
+            U.sort_indices()
+            _check_diagonal(U.diagonal(), self.backend)
             same = (
-                self._solver is not None
+                self._pattern is not None
                 and np.array_equal(U.indptr, self._pattern[0])
                 and np.array_equal(U.indices, self._pattern[1])
+            )  # the symbolic analysis holds only for the same pattern
+            self._factor_qdldl(U, same)
+        return self
+
+    def _factor_pardiso(self, H):
+        """PARDISO on the upper triangle in CSR; a new analysis only for a new pattern of ``H``."""
+        H = H if H.format == "csr" else sp.csr_matrix(H)
+        if not H.has_sorted_indices:
+            H = H.sorted_indices()
+        same = self._pattern is not None and (
+            (_same_memory(H.indptr, self._pattern[0]) and _same_memory(H.indices, self._pattern[1]))
+            or (
+                np.array_equal(H.indptr, self._pattern[0])
+                and np.array_equal(H.indices, self._pattern[1])
             )
-            if same:  # the symbolic analysis holds only for the same pattern
+        )
+        if not same:
+            self._solver = self._pattern = None  # frees the previous analysis before a new one
+            N = H.shape[0]
+            rows = np.repeat(np.arange(N), np.diff(H.indptr))
+            self._upper = np.flatnonzero(H.indices >= rows)  # entries of the upper triangle
+            del rows
+            indptr = np.zeros(N + 1, dtype=np.int32)
+            np.cumsum(np.diff(np.searchsorted(self._upper, H.indptr)), out=indptr[1:])
+            indices = H.indices[self._upper].astype(np.int32)
+            self._first = indptr[:-1]  # each row of U starts with its diagonal, when stored
+            has_diag = np.diff(indptr) > 0
+            has_diag[has_diag] = indices[self._first[has_diag]] == np.flatnonzero(has_diag)
+            _check_diagonal(has_diag.astype(float), self.backend)
+            self._solver = _Pardiso(
+                sp.csr_matrix((H.data[self._upper], indices, indptr), shape=H.shape),
+                self.ordering,
+            )
+            self.ordering = self._solver.ordering.astype(np.int64)
+            self._pattern = (H.indptr, H.indices)  # kept, not copied: O(nnz) memory at 10^6 poses
+        self._data = np.ascontiguousarray(H.data[self._upper], dtype=float)
+        _check_diagonal(self._data[self._first], self.backend)
+        self._solver.factor(self._data)
+        self.nnz_L = self._solver.nnz_L
+
+    def _factor_qdldl(self, U, same):
+        import qdldl
+
+        try:
+            if same:
                 self._solver.update(U, upper=True)
             else:
                 self._solver = qdldl.Solver(U, upper=True)
         except (RuntimeError, ValueError):  # ValueError: qdldl's "Matrix A is empty" (H = 0)
-            self._solver = None
+            self._solver = self._pattern = None
             what = "the matrix is zero" if U.nnz == 0 else "the matrix is singular or indefinite"
             raise NotPositiveDefiniteError(f"sparse Cholesky (qdldl) failed: {what}") from None
         self._pattern = (U.indptr.copy(), U.indices.copy())
-        _, d, perm = self._solver.factors()
+        L, d, perm = self._solver.factors()
+        self.nnz_L = int(L.nnz) + d.size
         bad = np.flatnonzero(~(d > 0))
         if bad.size:
             raise NotPositiveDefiniteError(
@@ -171,6 +443,30 @@ class SparseCholesky:
                 "positive; the matrix is singular or indefinite",
                 pivot=int(perm[bad[0]]),
             )
+
+    def factors(self):
+        """``(L, d, perm)`` with ``H = P (I + L) diag(d) (I + L)^T P^T``, ``P[perm[k], k] = 1``.
+
+        Only the qdldl backend exposes its factor (PARDISO and SuperLU keep theirs inside).
+
+        Returns
+        -------
+        L : scipy.sparse.csc_matrix, shape (N, N)
+            Strictly lower triangular, sorted indices.
+        d : ndarray, shape (N,)
+        perm : ndarray of int, shape (N,)
+        """
+        if self.backend != "qdldl":
+            raise OptionError(
+                f"SparseCholesky.factors: the {self.backend!r} backend does not expose its factor; "
+                "factor with backend='qdldl'"
+            )
+        if self.shape[0] == 0:
+            return sp.csc_matrix(self.shape), np.zeros(0), np.zeros(0, dtype=np.int64)
+        L, d, perm = self._solver.factors()
+        L = sp.csc_matrix(L)
+        L.sort_indices()
+        return L, np.asarray(d, dtype=float), np.asarray(perm, dtype=np.int64)
 
     def _factor_scipy(self, H):
         try:
@@ -209,7 +505,9 @@ class SparseCholesky:
         b = _check_rhs(b, self.shape[0], "SparseCholesky.solve")
         if self.shape[0] == 0:
             return np.zeros_like(b)
-        if self.backend == "qdldl" and b.ndim == 2:
+        if self.backend == "pardiso":
+            x = self._solver.solve(self._data, b)
+        elif self.backend == "qdldl" and b.ndim == 2:
             x = np.column_stack([self._solver.solve(col) for col in b.T]).reshape(b.shape)
         else:
             x = self._solver.solve(b)
@@ -221,6 +519,99 @@ class SparseCholesky:
         return x
 
 
+def _check_ordering(ordering, N):
+    """``ordering`` as an int64 permutation of ``range(N)``, or an OptionError saying what is wrong."""
+    p = np.asarray(ordering)
+    if p.dtype.kind not in "iu" or p.shape != (N,):
+        raise OptionError(
+            f"SparseCholesky: ordering must be a permutation of the {N} rows (integers, shape "
+            f"({N},)); got dtype {p.dtype}, shape {p.shape}"
+        )
+    seen = np.zeros(N, dtype=bool)
+    ok = p.size == 0 or (p.min() >= 0 and p.max() < N)
+    if ok:
+        seen[p] = True
+    if not ok or not seen.all():
+        raise OptionError(
+            "SparseCholesky: ordering is not a permutation (a row is missing, repeated or out of "
+            f"[0, {N}))"
+        )
+    return p.astype(np.int64)
+
+
+def fill_reducing_ordering(pattern):
+    """A nested-dissection ordering of a symmetric sparsity pattern, by METIS inside PARDISO.
+
+    Computing it on the pose graph (``n x n``) and expanding it to the unknowns
+    (:func:`expand_ordering`) is cheaper than METIS on the ``3n x 3n`` system and keeps a pose's
+    rows together; lagolib's Gauss–Newton and LAGO do so once per graph.
+
+    Parameters
+    ----------
+    pattern : scipy.sparse matrix, shape (n, n)
+        Symmetric; its values are ignored.
+
+    Returns
+    -------
+    ndarray of int, shape (n,), or None
+        Row ``k`` of the reordered matrix is row ``perm[k]``; None without MKL.
+    """
+    if _mkl_runtime() is None or pattern.shape[0] == 0:
+        return None
+    P = sp.csr_matrix(pattern, dtype=float, copy=True)
+    P.data[:] = 1.0
+    P = sp.triu(P + sp.identity(P.shape[0], format="csr"), format="csr")  # SPD values: n I + A
+    P.data[:] = 1.0
+    P.setdiag(float(P.shape[0]) + 1.0)
+    P.sort_indices()
+    P.indptr, P.indices = P.indptr.astype(np.int32), P.indices.astype(np.int32)
+    solver = _Pardiso(P)
+    return solver.ordering.astype(np.int64)
+
+
+def expand_ordering(perm, rows):
+    """Expand an ordering of poses to their unknowns.
+
+    Parameters
+    ----------
+    perm : ndarray of int, shape (n,)
+        Pose order (row ``k`` of the reordered pose graph is pose ``perm[k]``).
+    rows : ndarray of int, shape (n, q)
+        The rows of each pose's unknowns in the system; ``-1`` where a pose has none (fixed).
+
+    Returns
+    -------
+    ndarray of int, shape (number of rows >= 0,)
+    """
+    out = np.asarray(rows)[perm].ravel()
+    return out[out >= 0]
+
+
+def _same_memory(a, b):
+    """``a`` and ``b`` view the same memory (``b`` is kept alive, so its address is not reused).
+
+    LinearSystem hands every iteration's ``H`` the same index arrays (scipy wraps them in new
+    views); recognizing them spares an ``O(nnz)`` comparison per factorization.
+    """
+    return (
+        a.shape == b.shape
+        and a.dtype == b.dtype
+        and a.strides == b.strides
+        and a.ctypes.data == b.ctypes.data
+    )
+
+
+def _check_diagonal(d, backend):
+    """A positive-definite matrix has a positive diagonal ``d``: say which row fails, up front."""
+    bad = np.flatnonzero(~(d > 0))
+    if bad.size:
+        raise NotPositiveDefiniteError(
+            f"sparse Cholesky ({backend}): diagonal entry {d[bad[0]]:.3g} at row {bad[0]} is not "
+            "positive; the matrix is singular or indefinite",
+            pivot=int(bad[0]),
+        )
+
+
 def solve_spd(H, b, backend="auto"):
     """Solve ``H x = b`` for sparse symmetric positive-definite ``H`` by sparse Cholesky.
 
@@ -228,13 +619,176 @@ def solve_spd(H, b, backend="auto"):
     ----------
     H : scipy.sparse matrix, shape (N, N)
     b : array_like, shape (N,) or (N, k)
-    backend : {"auto", "qdldl", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "scipy"}
 
     Returns
     -------
     ndarray, same shape as ``b``
     """
     return SparseCholesky(H, backend).solve(b)
+
+
+def _supernodes(L):
+    """First column of every supernode of the strictly lower factor ``L`` (CSC), and ``N``.
+
+    Column ``j + 1`` joins column ``j``'s supernode when ``L[:, j]`` is ``L[:, j + 1]`` plus the
+    one row ``j + 1`` — their rows below the supernode are the same, so the supernode's columns
+    are one dense block.  Shape (K + 1,).
+    """
+    N = L.shape[0]
+    counts = np.diff(L.indptr)
+    first = np.full(N, -1, dtype=np.int64)
+    has = counts > 0
+    first[has] = L.indices[L.indptr[:-1][has]]
+    joins = (counts[:-1] == counts[1:] + 1) & (first[:-1] == np.arange(1, N))
+    return np.concatenate([[0], np.flatnonzero(~joins) + 1, [N]])
+
+
+@dataclass(eq=False)
+class SelectedInverse:
+    """The entries of ``H^-1`` on the sparsity pattern of ``H``'s Cholesky factor.
+
+    Made by :func:`selected_inverse`.  The pattern of ``L + L^T`` contains the pattern of ``H``,
+    so every diagonal entry, every 3x3 block of a pose, and every entry that couples two
+    variables sharing a constraint is there.
+
+    Attributes
+    ----------
+    N : int
+    perm : ndarray of int, shape (N,)
+        The factor's ordering: row ``k`` of the factor is row ``perm[k]`` of ``H``.
+    """
+
+    N: int
+    perm: np.ndarray
+    _iperm: np.ndarray
+    _keys: np.ndarray  # column * N + row of every entry of L (CSC order, so sorted)
+    _lower: np.ndarray  # Sigma at those entries (in the factor's ordering)
+    _diag: np.ndarray  # Sigma's diagonal (in the factor's ordering)
+
+    def entries(self, i, j):
+        """``(H^-1)[i, j]`` for arrays of rows ``i`` and columns ``j`` (of ``H``, broadcast).
+
+        Raises
+        ------
+        OptionError
+            A requested entry lies outside the factor's pattern (it was not computed): such an
+            entry needs a solve, e.g. ``SparseCholesky(H).solve(e_j)[i]``.
+        """
+        i, j = np.broadcast_arrays(np.asarray(i), np.asarray(j))
+        for name, v in (("i", i), ("j", j)):
+            if v.dtype.kind not in "iu" or (v.size and (v.min() < 0 or v.max() >= self.N)):
+                raise OptionError(f"SelectedInverse.entries: {name} must be rows in [0, {self.N})")
+        a, b = self._iperm[i], self._iperm[j]
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        out = self._diag[lo]
+        off = lo != hi
+        key = lo[off] * self.N + hi[off]
+        pos = np.minimum(np.searchsorted(self._keys, key), max(self._keys.size - 1, 0))
+        found = self._keys[pos] == key if self._keys.size else np.zeros(key.shape, bool)
+        if not np.all(found):
+            k = np.flatnonzero(off)[np.flatnonzero(~found)[0]]
+            raise OptionError(
+                f"SelectedInverse.entries: entry ({i.flat[k]}, {j.flat[k]}) of H^-1 is not on the "
+                "pattern of the factor, so it was not computed; solve for that column instead"
+            )
+        out = out.copy()
+        out[off] = self._lower[pos]
+        return out
+
+    def blocks(self, rows):
+        """Diagonal blocks ``(H^-1)[r, r]`` for each row group ``r`` of ``rows``.
+
+        Parameters
+        ----------
+        rows : array_like of int, shape (k, q)
+            E.g. ``3 * pose + [0, 1, 2]`` for the marginal covariance of each pose.
+
+        Returns
+        -------
+        ndarray, shape (k, q, q)
+        """
+        rows = np.asarray(rows)
+        if rows.ndim != 2:
+            raise OptionError(
+                f"SelectedInverse.blocks: rows must have shape (k, q); got {rows.shape}"
+            )
+        return self.entries(rows[:, :, None], rows[:, None, :])
+
+
+def selected_inverse(H, *, factor=None):
+    """``H^-1`` on the pattern of ``L`` by Takahashi's recurrences, supernode by supernode.
+
+    With ``H = L D L^T`` (unit lower ``L``, rows permuted) the inverse ``Σ`` satisfies
+    ``Σ L = L^-T D^-1``, upper triangular; column ``j`` of it below the diagonal reads
+    (Takahashi, Fagan and Chen 1973; Erisman and Tinney 1975)::
+
+        Σ[s, j] = -Σ[s, s] L[s, j]            s = struct(L[:, j]), the rows below j
+        Σ[j, j] = 1 / d_j - L[s, j]^T Σ[s, j]
+
+    and ``Σ[s, s]`` involves only entries on the pattern of ``L`` (``s`` is a clique of the
+    filled graph), already computed because the columns run from the last to the first.  The
+    columns of a supernode share their rows below it, so ``Σ`` on those rows is gathered once
+    per supernode into a small dense matrix.  The work is that of one more factorization; no
+    column of ``H^-1`` is solved for.
+
+    Parameters
+    ----------
+    H : scipy.sparse matrix, shape (N, N)
+        Symmetric positive definite.
+    factor : SparseCholesky, optional
+        A qdldl factorization of ``H`` to reuse.
+
+    Returns
+    -------
+    SelectedInverse
+
+    References
+    ----------
+    K. Takahashi, J. Fagan, M.-S. Chen, "Formation of a sparse bus impedance matrix and its
+    application to short circuit study", PICA 1973.  A. M. Erisman, W. F. Tinney, "On computing
+    certain elements of the inverse of a sparse matrix", Comm. ACM 18(3), 1975.
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.sparse as sp
+    >>> H = sp.csc_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 2.0]]))
+    >>> S = selected_inverse(H)
+    >>> bool(np.allclose(S.entries([0, 1, 2], [0, 1, 2]), np.diag(np.linalg.inv(H.toarray()))))
+    True
+    """
+    if factor is None:
+        factor = SparseCholesky(H, "qdldl")
+    elif not isinstance(factor, SparseCholesky) or factor.shape != H.shape:
+        raise OptionTypeError("selected_inverse: factor must be a SparseCholesky of H")
+    L, d, perm = factor.factors()
+    N = L.shape[0]
+    indptr, indices, data = L.indptr, L.indices, L.data
+    lower = np.zeros(data.size)
+    diag = np.zeros(N)
+    keys = np.repeat(np.arange(N, dtype=np.int64), np.diff(indptr)) * N + indices
+    starts = _supernodes(L)
+    for J in range(starts.size - 2, -1, -1):
+        c0, c1 = int(starts[J]), int(starts[J + 1])
+        s = c1 - c0
+        R = indices[indptr[c1 - 1] : indptr[c1]]  # the rows below the supernode
+        r = R.size
+        S = np.empty((s + r, s + r))  # Σ on [J, R]: local rows 0..s-1 are J, then R
+        S[s:, s:] = np.diag(diag[R])
+        ia, ib = np.tril_indices(r, -1)
+        if ia.size:  # Σ_RR: on the pattern of L, already computed
+            S[s + ia, s + ib] = S[s + ib, s + ia] = lower[np.searchsorted(keys, R[ib] * N + R[ia])]
+        for k in range(s - 1, -1, -1):  # column j = c0 + k: rows c0+k+1 .. c1-1, then R
+            o = indptr[c0 + k]
+            lj = data[o : indptr[c0 + k + 1]]  # L[struct(j), j], shape (s - 1 - k + r,)
+            col = -(S[k + 1 :, k + 1 :] @ lj)  # Σ[struct(j), j] = -Σ[struct, struct] L[struct, j]
+            S[k + 1 :, k] = S[k, k + 1 :] = col
+            S[k, k] = 1.0 / d[c0 + k] - lj @ col  # Σ_jj = 1/d_j - L[struct, j]^T Σ[struct, j]
+            lower[o : indptr[c0 + k + 1]] = col
+        diag[c0:c1] = np.diagonal(S)[:s]
+    iperm = np.empty(N, dtype=np.int64)
+    iperm[perm] = np.arange(N)
+    return SelectedInverse(N, perm, iperm, keys, lower, diag)
 
 
 @dataclass

@@ -19,6 +19,8 @@ error is written in frame ``i`` or in the measurement's frame (TORO and g2o agre
 
 from __future__ import annotations
 
+import itertools
+import math
 import numbers
 from dataclasses import dataclass
 
@@ -227,6 +229,146 @@ def loop_world(
     return measure(truth, np.vstack([odo, loops]), rng=rng, **noise)
 
 
+# Lattice headings of manhattan_world: east, north, west, south (index h), and their unit moves.
+_HEADINGS = np.array([0.0, np.pi / 2, np.pi, -np.pi / 2])
+_UNIT = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]], dtype=np.int64)
+# Candidate pairs (or offset-by-pose lookups) held in memory at once by _closure_pairs.
+_CHUNK = 1 << 20
+
+
+def _lattice_walk(n_poses, extent, turn_probability, rng):
+    """Headings ``h_k`` (indices into ``_HEADINGS``) of :func:`manhattan_world`'s walk; shape (n,).
+
+    Pose 0 stands at lattice point ``(0, 0)`` heading east; pose ``k`` is pose ``k - 1`` moved one
+    lattice step along ``h_{k-1}``.  Its heading is ``h_{k-1}`` turned left (``r < p/2``), right
+    (``p/2 <= r < p``) or kept, with ``r`` the step's uniform draw and ``p`` the
+    ``turn_probability``; if the next move would then leave the ``extent × extent`` lattice the
+    first of (that heading, a left turn, a right turn, a U-turn from it) that stays inside is
+    taken.  The ``n - 1`` draws are one ``rng.random(n - 1)`` — bit-identical to one
+    ``rng.random()`` per step for every numpy bit generator.  The turn back is sequential, so the
+    walk is a loop, kept to a few Python integer operations and table look-ups per step.
+    """
+    r = rng.random(n_poses - 1)
+    turns = np.where(r < turn_probability / 2, 1, np.where(r < turn_probability, 3, 0)).tolist()
+    # A coordinate's place on the lattice — low edge, inside, high edge: 0, 1, 2 — is stored
+    # pre-scaled (x by 12, y by 4) so that bx[x] + by[y] + h indexes a table of the heading taken
+    # at such a place by a robot that wants to go along h.  Coordinates stay below
+    # min(extent, n_poses), so the lists are never longer than the walk.
+    size = min(extent, n_poses)
+    bx, by = [12] * size, [4] * size
+    bx[0] = by[0] = 0
+    if extent <= size:
+        bx[extent - 1], by[extent - 1] = 24, 8
+    leaves = {0: -1, 1: None, 2: 1}  # the move that would leave the lattice from each place
+    table = []
+    for xplace, yplace, h in itertools.product(range(3), range(3), range(4)):
+        for cand in (h, (h + 1) % 4, (h - 1) % 4, (h + 2) % 4):
+            dx, dy = _UNIT[cand].tolist()
+            if dx != leaves[xplace] and dy != leaves[yplace]:
+                table.append(cand)
+                break
+    dxs, dys = _UNIT[:, 0].tolist(), _UNIT[:, 1].tolist()
+    x = y = h = 0
+    hs = [0] * n_poses
+    for k, turn in enumerate(turns, 1):
+        x += dxs[h]
+        y += dys[h]
+        h = table[bx[x] + by[y] + ((h + turn) & 3)]
+        hs[k] = h
+    return np.array(hs, dtype=np.intp)
+
+
+def _closure_candidates(lattice, step, closure_radius, min_separation):
+    """Pose pairs ``j <= k - min_separation`` whose lattice points may lie within the radius.
+
+    A superset of the pairs :func:`manhattan_world` tests, found by spatial hashing instead of
+    comparing every pair: lattice points are grouped in square blocks of ``s × s`` points (``s = 1``
+    unless the radius spans many lattice steps), and pose ``k`` is paired with the earlier poses
+    in the blocks whose nearest points are within ``closure_radius`` (plus a margin far above the
+    rounding of ``cells``) of ``k``'s block.  Yields ``(k, j)``, two int64 arrays, in chunks of at
+    most about ``_CHUNK`` pairs (one ``k`` may exceed it), ordered by ``k`` then ``j`` across all
+    chunks.
+
+    Parameters
+    ----------
+    lattice : ndarray of int64, shape (n, 2)
+        Non-negative lattice coordinates of the poses.
+    step, closure_radius : float
+    min_separation : int
+    """
+    n = len(lattice)
+    if n <= min_separation:
+        return
+    top = int(lattice.max())
+    # |fl(a*step) - fl(b*step)| is a*step - b*step to within ~3e-16 * step * top (plus underflow)
+    reach = closure_radius + 1e-9 * (closure_radius + step * (top + 1)) + 1e-300
+    ratio = reach / step  # lattice steps; may be inf
+    block = top + 1 if ratio >= 4 * (top + 1) else max(1, math.ceil(ratio / 4))
+    blocks = lattice // block
+    # offsets (ox, oy) between blocks whose closest lattice points are within reach
+    span = int(blocks.max())
+    side = span if ratio >= block * span else min(span, math.ceil(ratio / block) + 1)
+    o = np.arange(-side, side + 1)
+    ox, oy = (a.ravel() for a in np.meshgrid(o, o, indexing="ij"))
+    near = np.maximum(np.abs(ox) * block - (block - 1), 0)
+    far = np.maximum(np.abs(oy) * block - (block - 1), 0)
+    keep = np.hypot(near, far) * step <= reach
+    offsets = np.column_stack([ox[keep], oy[keep]])
+    # blocks as dense ids; poses sorted by (block id, pose index) as one int64 key
+    width = int(blocks[:, 1].max()) + 1
+    block_key = blocks[:, 0] * width + blocks[:, 1]
+    keys, block_id = np.unique(block_key, return_inverse=True)
+    by_block = np.sort(block_id.ravel() * n + np.arange(n))
+    pose_of = by_block % n
+    per_chunk = max(1, _CHUNK // len(offsets))
+    for k0 in range(min_separation, n, per_chunk):
+        k = np.arange(k0, min(n, k0 + per_chunk))
+        # target block of every (k, offset), k-major; blocks outside the walk's box hold no pose
+        tx = blocks[k, 0][:, None] + offsets[:, 0]
+        ty = blocks[k, 1][:, None] + offsets[:, 1]
+        inside = (tx >= 0) & (tx <= span) & (ty >= 0) & (ty < width)
+        target = np.where(inside, tx * width + ty, -1)
+        at = np.minimum(np.searchsorted(keys, target), len(keys) - 1)
+        found = inside & (keys[at] == target)
+        start = np.searchsorted(by_block, at * n)
+        stop = np.searchsorted(by_block, at * n + (k - min_separation)[:, None], side="right")
+        count = np.where(found, stop - start, 0)
+        # split this block of k into pieces of at most about _CHUNK candidates
+        total = np.cumsum(count.sum(axis=1))
+        cuts = np.searchsorted(total, np.arange(_CHUNK, total[-1], _CHUNK), side="right")
+        edges = np.unique(np.concatenate([[0], cuts, [len(k)]]))
+        for a, b in zip(edges[:-1].tolist(), edges[1:].tolist()):
+            c = count[a:b].ravel()
+            if not c.any():
+                continue
+            first = start[a:b].ravel()
+            kk = np.repeat(np.repeat(k[a:b], len(offsets)), c)
+            before = np.cumsum(c) - c
+            pos = np.arange(int(c.sum())) - np.repeat(before - first, c)
+            pair = np.sort(kk * n + pose_of[pos])
+            yield pair // n, pair % n
+
+
+def _closure_pairs(lattice, cells, step, closure_radius, closure_probability, min_separation, rng):
+    """Loop closures ``(j, k)`` of :func:`manhattan_world`, shape (c, 2), ordered by ``k`` then ``j``.
+
+    Every pair ``j <= k - min_separation`` with ``hypot(*(cells[j] - cells[k])) <=
+    closure_radius`` draws one ``rng.random()``, in order of ``k`` then ``j``, and is kept when the
+    draw is below ``closure_probability``.  The candidates come from
+    :func:`_closure_candidates` (a superset) and are filtered with that same float test on the same
+    ``cells``; each chunk's draws are one ``rng.random(size)`` call, bit-identical to successive
+    scalar draws.  Time and memory grow with ``n`` plus the number of candidates, not ``n²``.
+    """
+    found = []
+    for k, j in _closure_candidates(lattice, step, closure_radius, min_separation):
+        d = cells[j] - cells[k]
+        close = np.hypot(d[:, 0], d[:, 1]) <= closure_radius
+        j, k = j[close], k[close]
+        keep = rng.random(len(j)) < closure_probability
+        found.append(np.column_stack([j[keep], k[keep]]))
+    return np.vstack(found) if found else np.zeros((0, 2), dtype=np.int64)
+
+
 def manhattan_world(
     *,
     n_poses=200,
@@ -262,6 +404,14 @@ def manhattan_world(
     Returns
     -------
     Simulation
+
+    Notes
+    -----
+    Time and memory grow with ``n_poses`` plus the number of pose pairs within
+    ``closure_radius`` (each draws one random number), not with ``n_poses²``: the walk is a
+    table-driven loop and earlier poses near pose ``k`` are found by spatial hashing.  With the
+    default closure options, ``extent = int(sqrt(n_poses / 2.6))`` gives about 1.8 edges per pose
+    (1.76–1.88 for ``rng=0`` from 1e3 to 1e6 poses).
     """
     where = "manhattan_world"
     rng = _rng(rng, where)
@@ -276,37 +426,16 @@ def manhattan_world(
         closure_probability, "closure_probability", where, minimum=0.0, maximum=1.0
     )
     min_separation = check_int(min_separation, "min_separation", where, minimum=1)
-    headings = np.array([0.0, np.pi / 2, np.pi, -np.pi / 2])
-    cell = np.zeros(2, dtype=np.int64)
-    h = 0  # index into headings
-    unit = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]])
-    cells, hs = [cell.copy()], [h]
-    for _ in range(n_poses - 1):
-        cell = cell + unit[h]
-        r = rng.random()
-        if r < turn_probability / 2:
-            h = (h + 1) % 4
-        elif r < turn_probability:
-            h = (h - 1) % 4
-        # turn back inside when the next move would leave the lattice
-        options = [h, (h + 1) % 4, (h - 1) % 4, (h + 2) % 4]
-        for cand in options:
-            nxt = cell + unit[cand]
-            if np.all((nxt >= 0) & (nxt < extent)):
-                h = cand
-                break
-        cells.append(cell.copy())
-        hs.append(h)
-    cells = np.array(cells, dtype=float) * step
-    truth = np.column_stack([cells, headings[hs]])
-    pairs = []
-    for k in range(min_separation, n_poses):
-        d = np.hypot(*(cells[: k - min_separation + 1] - cells[k]).T)
-        for j in np.flatnonzero(d <= closure_radius):
-            if rng.random() < closure_probability:
-                pairs.append((j, k))
+    hs = _lattice_walk(n_poses, extent, turn_probability, rng)
+    lattice = np.zeros((n_poses, 2), dtype=np.int64)
+    np.cumsum(_UNIT[hs[:-1]], axis=0, out=lattice[1:])
+    cells = lattice.astype(float) * step
+    truth = np.column_stack([cells, _HEADINGS[hs]])
+    pairs = _closure_pairs(
+        lattice, cells, step, closure_radius, closure_probability, min_separation, rng
+    )
     odo = np.column_stack([np.arange(n_poses - 1), np.arange(1, n_poses)])
-    edges = np.vstack([odo, np.array(pairs, dtype=np.int64).reshape(-1, 2)])
+    edges = np.vstack([odo, pairs])
     return measure(truth, edges, rng=rng, **noise)
 
 
