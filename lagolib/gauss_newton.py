@@ -49,7 +49,6 @@ from .graph import (
     PoseGraph,
     _numeric,
     as_graph_poses,
-    chi2,
     describe_bad_information,
     edge_errors,
     first_bad_information,
@@ -118,6 +117,12 @@ def edge_jacobians(p_i, p_j, z, *, error="t2v"):
            [ 0.,  0., -1.]])
     """
     check_choice(error, "error", "edge_jacobians", ERRORS)
+    e, J = _edge_jacobian(p_i, p_j, z, error)
+    return e, J[..., :3], J[..., 3:]
+
+
+def _edge_jacobian(p_i, p_j, z, error):
+    """:func:`edge_jacobians` with ``[A_ij  B_ij]`` written into one array ``J``, shape (..., 3, 6)."""
     p_i, p_j, z = np.broadcast_arrays(
         se2._as_poses(p_i, "p_i"), se2._as_poses(p_j, "p_j"), se2._as_poses(z, "z")
     )
@@ -126,17 +131,18 @@ def edge_jacobians(p_i, p_j, z, *, error="t2v"):
     c, s = np.cos(a), np.sin(a)
     dx = p_j[..., 0] - p_i[..., 0]
     dy = p_j[..., 1] - p_i[..., 1]
-    B = np.zeros(p_i.shape + (3,))
-    B[..., 0, 0], B[..., 0, 1] = c, s
-    B[..., 1, 0], B[..., 1, 1] = -s, c
-    B[..., 2, 2] = 1.0
-    A = -B
-    A[..., 0, 2] = -s * dx + c * dy  # d(R_iz^T)/dtheta_i dt, first row
-    A[..., 1, 2] = -c * dx - s * dy
+    J = np.zeros(p_i.shape + (6,))
+    J[..., 0, 3], J[..., 0, 4] = c, s  # B_ij = [[R_iz^T, 0], [0, 1]]
+    J[..., 1, 3], J[..., 1, 4] = -s, c
+    J[..., 2, 5] = 1.0
+    J[..., 0, 0], J[..., 0, 1] = -c, -s  # A_ij = -B_ij, but for its last column
+    J[..., 1, 0], J[..., 1, 1] = s, -c
+    J[..., 2, 2] = -1.0
+    J[..., 0, 2] = -s * dx + c * dy  # d(R_iz^T)/dtheta_i dt, first row
+    J[..., 1, 2] = -c * dx - s * dy
     if error == "log":
-        D = se2.log_jacobian(e)
-        return se2.log(e), D @ A, D @ B
-    return e, A, B
+        return se2.log(e), se2.log_jacobian(e) @ J
+    return e, J
 
 
 def prior_jacobian(p, mean, *, error="t2v"):
@@ -525,20 +531,23 @@ class LinearSystem:
 
     def _terms(self, poses):
         g = self.graph
-        e, A, B = edge_jacobians(
-            poses[g.edges[:, 0]], poses[g.edges[:, 1]], g.measurements, error=self.error
+        e, J = _edge_jacobian(
+            poses[g.edges[:, 0]], poses[g.edges[:, 1]], g.measurements, self.error
         )
         ep, Jp = prior_jacobian(poses[self._prior_idx], self._prior_mean, error=self.error)
-        return e, np.concatenate([A, B], axis=2), ep, Jp
+        return e, J, ep, Jp
 
     def objective(self, poses):
         """χ² of the edges plus the priors' terms at ``poses`` (shape (n, 3)); no Jacobians."""
+        g = self.graph
+        e = edge_errors(
+            poses[g.edges[:, 0]], poses[g.edges[:, 1]], g.measurements, error=self.error
+        )
         ep = se2.between(self._prior_mean, poses[self._prior_idx])
         if self.error == "log":
             ep = se2.log(ep)
-        return chi2(self.graph, poses, error=self.error) + float(
-            np.einsum("ka,kab,kb->", ep, self._prior_info, ep)
-        )
+        chi = float(np.einsum("ka,kab,kb->k", e, g.information, e).sum())  # graph.chi2's sum
+        return chi + float(np.einsum("ka,kab,kb->", ep, self._prior_info, ep))
 
     def assemble(self, poses):
         """``H``, ``b`` and the objective at ``poses``.

@@ -495,7 +495,26 @@ class PoseGraph:
 _INFO_OK, _NON_FINITE, _ASYMMETRIC, _NOT_PD, _OVERFLOW, _UNDERFLOW, _SINGULAR = range(7)
 
 
+#: Matrices per chunk in :func:`_information_check` (its temporaries stay a few MB at 10^6 edges).
+_CHECK_CHUNK = 2**16
+
+
 def _information_check(information, rtol=1e-9):
+    """Classify each 3x3 information matrix; the eigenvalues are computed without overflow.
+
+    Chunks of :data:`_CHECK_CHUNK` matrices at a time (:func:`_information_check_chunk`).
+    """
+    info = np.asarray(information, dtype=float)
+    if len(info) <= _CHECK_CHUNK:
+        return _information_check_chunk(info, rtol)
+    parts = [
+        _information_check_chunk(info[k : k + _CHECK_CHUNK], rtol)
+        for k in range(0, len(info), _CHECK_CHUNK)
+    ]
+    return tuple(np.concatenate(p) for p in zip(*parts))
+
+
+def _information_check_chunk(information, rtol=1e-9):
     """Classify each 3x3 information matrix; the eigenvalues are computed without overflow.
 
     Returns

@@ -121,10 +121,13 @@ def available_backends():
 
 def _auto_backend(N):
     """``backend="auto"`` for a system of ``N`` rows (see :data:`PARDISO_MIN_SIZE`)."""
-    have = available_backends()
-    if N >= PARDISO_MIN_SIZE and "pardiso" in have:
+    if N >= PARDISO_MIN_SIZE and _mkl_runtime() is not None:  # MKL is loaded only then
         return "pardiso"
-    return have[0]
+    try:
+        import qdldl  # noqa: F401
+    except ImportError:  # pragma: no cover - qdldl is a dependency
+        return "scipy"
+    return "qdldl"
 
 
 def _check_square(H, where="SparseCholesky", *, check=True):

@@ -21,10 +21,13 @@ limit on the chapters.
 """
 
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import nbformat
 import pytest
+from jupyter_client import KernelManager
 from nbclient import NotebookClient
 from nbclient.exceptions import CellExecutionError, CellTimeoutError
 
@@ -87,8 +90,14 @@ def kernel_env(variant, cache):
 def execute(path, env):
     """Run the notebook at ``path`` in a fresh kernel; return the executed notebook."""
     nb = _read(path)
+    # IPC sockets, not TCP ports: jupyter_client picks a "free" TCP port by binding and releasing
+    # it, and another kernel starting beside it can take the port first — the kernel then never
+    # answers and nbclient waits out its start-up timeout (seen as ~120 s stalls under load)
+    sockets = tempfile.mkdtemp(prefix="lagolib-kernel-")
+    km = KernelManager(kernel_name="python3", transport="ipc", ip=os.path.join(sockets, "k"))
     client = NotebookClient(
         nb,
+        km=km,
         timeout=CELL_TIMEOUT,
         kernel_name="python3",
         allow_errors=False,
@@ -100,6 +109,8 @@ def execute(path, env):
         pytest.fail(f"{path.name}: a cell ran longer than {CELL_TIMEOUT} s (hang?)\n{exc}")
     except CellExecutionError as exc:
         pytest.fail(f"{path.name}: a cell raised\n{exc}", pytrace=False)
+    finally:
+        shutil.rmtree(sockets, ignore_errors=True)
     return nb
 
 
