@@ -403,6 +403,11 @@ class SparseCholesky:
         if not same:
             self._solver = self._pattern = None  # frees the previous analysis before a new one
             N = H.shape[0]
+            if H.nnz >= 2**31 - 1:
+                raise BackendError(
+                    f"sparse Cholesky (PARDISO): {H.nnz} stored entries exceed the 32-bit "
+                    "interface lagolib calls; use backend='qdldl'"
+                )
             rows = np.repeat(np.arange(N), np.diff(H.indptr))
             self._upper = np.flatnonzero(H.indices >= rows)  # entries of the upper triangle
             del rows
@@ -774,7 +779,7 @@ def selected_inverse(H, *, factor=None):
     for J in range(starts.size - 2, -1, -1):
         c0, c1 = int(starts[J]), int(starts[J + 1])
         s = c1 - c0
-        R = indices[indptr[c1 - 1] : indptr[c1]]  # the rows below the supernode
+        R = indices[indptr[c1 - 1] : indptr[c1]].astype(np.int64)  # rows below the supernode
         r = R.size
         S = np.empty((s + r, s + r))  # Σ on [J, R]: local rows 0..s-1 are J, then R
         S[s:, s:] = np.diag(diag[R])

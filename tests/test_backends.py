@@ -326,3 +326,46 @@ def test_with_and_without_mkl_the_results_agree(without_mkl):
         assert np.max(np.abs(a - b)) <= 1e-10 * max(1.0, np.max(np.abs(b))), key
     assert with_mkl["chi2"] == pytest.approx(without_mkl["chi2"], rel=1e-10)
     np.testing.assert_allclose(with_mkl["cov"], without_mkl["cov"], rtol=1e-9, atol=1e-15)
+
+
+def test_assembly_in_chunks_equals_one_chunk(world, monkeypatch):
+    prior = [gn.Prior(3, world.poses[3] + 0.1, rotated_information(1, np.random.default_rng(4))[0])]
+    whole = gn.LinearSystem(world, fixed=[0, 9], prior=prior).assemble(world.poses + 0.05)
+    monkeypatch.setattr(gn, "_CHUNK", 7)  # edges per chunk
+    parts = gn.LinearSystem(world, fixed=[0, 9], prior=prior).assemble(world.poses + 0.05)
+    assert np.array_equal(whole[0].toarray(), parts[0].toarray())
+    np.testing.assert_allclose(parts[1], whole[1], rtol=1e-13, atol=1e-12)
+    assert parts[2] == pytest.approx(whole[2], rel=1e-13)
+
+
+def test_information_checked_in_chunks_names_the_right_edge(monkeypatch):
+    from lagolib import graph as graph_module
+
+    monkeypatch.setattr(graph_module, "_CHECK_CHUNK", 5)  # matrices per chunk
+    rng = np.random.default_rng(154)
+    m = 23
+    info = rotated_information(m, rng)
+    info[17] = -info[17]  # not positive definite, in the fourth chunk
+    edges = np.column_stack([np.arange(m), np.arange(1, m + 1)])
+    with pytest.raises(lagolib.GraphError, match=r"17|\b17\b") as err:
+        lagolib.PoseGraph(np.zeros((m + 1, 3)), edges, np.zeros((m, 3)), info)
+    assert err.value.edge == 17
+
+
+def test_selected_inverse_beyond_int32_keys():
+    """N > 46341 rows: row * N overflows int32 (the factor's indices are int32)."""
+    sim = simulate.loop_world(laps=2, poses_per_lap=7800, rng=np.random.default_rng(155))
+    g = sim.graph
+    H, free = information_matrix(g)
+    assert H.shape[0] ** 2 > 2**31
+    S = linalg.selected_inverse(H)
+    F = linalg.SparseCholesky(H, "qdldl")
+    rng = np.random.default_rng(156)
+    for k in rng.choice(free.size, 4, replace=False):
+        rows = 3 * k + np.arange(3)
+        E = np.zeros((H.shape[0], 3))
+        E[rows, [0, 1, 2]] = 1.0
+        ref = F.solve(E)[rows]
+        np.testing.assert_allclose(
+            S.blocks(rows[None])[0], ref, rtol=1e-9, atol=1e-12 * abs(ref).max()
+        )
