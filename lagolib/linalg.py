@@ -59,10 +59,10 @@ __all__ = [
 BACKENDS = ("qdldl", "pardiso", "scipy")
 
 #: ``backend="auto"`` uses PARDISO (when installed) for systems of at least this many rows, qdldl
-#: below.  Measured here (``benchmarks/bench_scale.py``): on M3500's 10 497 rows qdldl's
-#: factorization takes about 40 ms and PARDISO's refactorization about 15 ms plus a first
-#: analysis of about 60 ms; above ~10^4 rows PARDISO wins every Gauss–Newton run.
-PARDISO_MIN_SIZE = 20_000
+#: below.  Measured here (``benchmarks/bench_scale.py``, 2 cores): a refactorization of city10000's
+#: 29 997 rows takes about 60 ms with qdldl and 45-140 ms with PARDISO (its two threads suffer
+#: most when the machine is busy); at 9 x 10^4 rows qdldl takes 0.8 s and PARDISO 0.1 s.
+PARDISO_MIN_SIZE = 50_000
 
 _MKL = {}  # the loaded MKL runtime, found once: {"lib": CDLL or None, "why": str}
 
