@@ -145,6 +145,75 @@ def _edge_jacobian(p_i, p_j, z, error):
     return e, J
 
 
+def _normal_blocks(p_i, p_j, z, information, Oe):
+    """``J^T Omega J`` and ``J^T Omega e`` of every edge in closed form.
+
+    Lecture notes, "Building the Linear system": an edge adds ``A^T Ω A``, ``A^T Ω B``,
+    ``B^T Ω A``, ``B^T Ω B`` to ``H`` and ``A^T Ω e``, ``B^T Ω e`` to ``b``.  With the ``t2v``
+    Jacobians of :func:`edge_jacobians`, ``B = G = diag(R_iz^T, 1)`` and ``A = -G + u e3^T`` where
+    ``u = (dR_iz^T/dθ (t_j - t_i), 0)``, so with ``P = G^T Ω G`` (Ω rotated), ``q = G^T Ω u``,
+    ``r = u^T Ω u``, ``g = G^T Ω e`` and ``h = u^T Ω e``::
+
+        B^T Ω B = P,     A^T Ω B = -P + e3 q^T,     A^T Ω A = P - e3 q^T - q e3^T + r e3 e3^T
+        B^T Ω e = g,     A^T Ω e = -g + h e3
+
+    — a few products per edge instead of two 3x6 matrix products; equal to them to rounding
+    (tested), and exactly symmetric.  GTSAM's ``log`` error has Jacobians ``D [A B]``
+    (``D = d log/du``), which is the same with Ω replaced by ``D^T Ω D`` and ``Ω e`` by
+    ``D^T Ω e``.  Entry-major layout: every entry is one contiguous vector over the edges.
+
+    Parameters
+    ----------
+    p_i, p_j, z : ndarray, shape (c, 3)
+    information : ndarray, shape (c, 3, 3)
+        Ω (``t2v``) or ``D^T Ω D`` (``log``); symmetric.
+    Oe : ndarray, shape (c, 3)
+        ``Ω e`` (``t2v``) or ``D^T Ω e`` (``log``).
+
+    Returns
+    -------
+    M : ndarray, shape (6, 6, c)
+        ``J^T Ω J`` with ``J = [A B]``, entry ``(a, b)`` of every edge in ``M[a, b]``.
+    Jte : ndarray, shape (6, c)
+        ``J^T Ω e``.
+    """
+    ang = p_i[:, 2] + z[:, 2]
+    c, s = np.cos(ang), np.sin(ang)
+    dx, dy = p_j[:, 0] - p_i[:, 0], p_j[:, 1] - p_i[:, 1]
+    u0, u1 = -s * dx + c * dy, -c * dx - s * dy  # A's last column, d(R_iz^T)/dθ_i dt
+    Om = information
+    a, bxy, d = Om[:, 0, 0], Om[:, 0, 1], Om[:, 1, 1]
+    p, q, t = Om[:, 0, 2], Om[:, 1, 2], Om[:, 2, 2]
+    cs, cc, ss = c * s, c * c, s * s
+    P = np.empty((3, 3, len(c)))  # P = G^T Ω G: the xy block rotated by R_iz
+    P[0, 0] = cc * a - 2.0 * cs * bxy + ss * d
+    P[0, 1] = P[1, 0] = cs * (a - d) + (cc - ss) * bxy
+    P[1, 1] = ss * a + 2.0 * cs * bxy + cc * d
+    P[0, 2] = P[2, 0] = c * p - s * q
+    P[1, 2] = P[2, 1] = s * p + c * q
+    P[2, 2] = t
+    w0, w1 = a * u0 + bxy * u1, bxy * u0 + d * u1  # Ω u (its first two entries) ...
+    qv = np.stack([c * w0 - s * w1, s * w0 + c * w1, p * u0 + q * u1])  # ... G^T Ω u, (3, c)
+    M = np.empty((6, 6, len(c)))
+    M[3:, 3:] = P  # B^T Ω B
+    Hij = M[:3, 3:]
+    np.negative(P, out=Hij)
+    Hij[2] += qv  # A^T Ω B = -P + e3 q^T
+    M[3:, :3] = np.swapaxes(Hij, 0, 1)
+    Hii = M[:3, :3]
+    Hii[...] = P  # A^T Ω A = P - e3 q^T - q e3^T + r e3 e3^T
+    Hii[2] -= qv
+    Hii[:, 2] -= qv
+    Hii[2, 2] += u0 * w0 + u1 * w1  # r = u^T Ω u
+    f0, f1 = Oe[:, 0], Oe[:, 1]  # Ω e
+    Jte = np.empty((6, len(c)))
+    Jte[3], Jte[4] = c * f0 - s * f1, s * f0 + c * f1  # g = G^T Ω e
+    Jte[5] = Oe[:, 2]
+    np.negative(Jte[3:], out=Jte[:3])
+    Jte[2] += u0 * f0 + u1 * f1  # A^T Ω e = -g + h e3
+    return M, Jte
+
+
 def prior_jacobian(p, mean, *, error="t2v"):
     """Error of a pose prior and its Jacobian (lecture notes, "Role of the Prior").
 
@@ -447,7 +516,8 @@ class LinearSystem:
         self._build_pattern(e, pblk)
         # where each edge's / prior's J^T Omega e goes in b: N (a trash row) where the pose is fixed
         N = self.N
-        self._rows_b_e = np.where(e[:, :, None] >= 0, 3 * e[:, :, None] + comp, N)  # (m, 2, 3)
+        rows_b = np.where(e[:, :, None] >= 0, 3 * e[:, :, None] + comp, N)  # (m, 2, 3)
+        self._rows_b_e = np.ascontiguousarray(rows_b.reshape(-1, 6).T)  # entry-major, (6, m)
         self._rows_b_p = np.where(pblk[:, None] >= 0, 3 * pblk[:, None] + comp, N)  # (p, 3)
 
     def _build_pattern(self, e, pblk):
@@ -501,14 +571,21 @@ class LinearSystem:
                 slot[:, :, a, c] = np.where(keep_e, be + a * se + c, nnz)
                 self._slot_p[keep_p, a, c] = base[up] + a * stride[up] + c
         # in the layout of an edge's 6x6 J^T Omega J: rows 3 qr + a, columns 3 qc + c
-        self._slot_e = np.ascontiguousarray(
-            slot.reshape(-1, 2, 2, 3, 3).transpose(0, 1, 3, 2, 4).reshape(-1, 6, 6)
+        self._slot_e = np.ascontiguousarray(  # entry-major, (6, 6, m): a chunk's slots are runs
+            slot.reshape(-1, 2, 2, 3, 3).transpose(1, 3, 2, 4, 0).reshape(6, 6, -1)
         )
         del slot
         first = np.searchsorted(blocks, np.arange(k) * (k + 1)) - bptr[:-1]  # rank of (r, r)
         self._diag_slot = (
             9 * bptr[:-1, None] + 3 * a3 * cnt[:, None] + 3 * first[:, None] + a3
         ).ravel()
+
+    @property
+    def _closed_form(self):
+        """Whether :meth:`assemble` may use :func:`_normal_blocks`: the graph's own edges,
+        information and Jacobians, not a subclass's residual (e.g. lagolib.certify's)."""
+        cls = type(self)
+        return cls._terms is LinearSystem._terms and cls._edge_weights is LinearSystem._edge_weights
 
     def ordering(self):
         """A nested-dissection ordering of ``H``'s rows, from the pose graph (None without MKL).
@@ -567,20 +644,43 @@ class LinearSystem:
         chi2 : float
             ``sum_ij e_ij^T Omega_ij e_ij`` plus the priors' terms.
         """
-        e, J, ep, Jp = self._terms(poses)
-        W = self._edge_weights()  # Omega_ij, (m, k, k)
+        fast = self._closed_form  # lagolib's own edges and Jacobians: the blocks in closed form
+        if fast:
+            g = self.graph
+            p_i, p_j = poses[g.edges[:, 0]], poses[g.edges[:, 1]]
+            ep, Jp = prior_jacobian(poses[self._prior_idx], self._prior_mean, error=self.error)
+            m = g.m
+        else:
+            e, J, ep, Jp = self._terms(poses)
+            W = self._edge_weights()  # Omega_ij, (m, k, k)
+            m = J.shape[0]
         data = np.zeros(self.nnz + 1)  # the last slot takes the blocks of fixed poses
         b = np.zeros(self.N + 1)
         objective = 0.0
-        for lo in range(0, J.shape[0], _CHUNK):  # chunks keep the temporaries small
+        for lo in range(0, m, _CHUNK):  # chunks keep the temporaries small
             c = slice(lo, lo + _CHUNK)
-            OJ = W[c] @ J[c]  # Omega J, (c, k, 6)
-            M = np.swapaxes(J[c], 1, 2) @ OJ  # J^T Omega J, (c, 6, 6)
-            M += np.swapaxes(M, 1, 2)  # exactly symmetric, as H is
-            M *= 0.5
-            np.add.at(data, self._slot_e[c].ravel(), M.ravel())
-            np.add.at(b, self._rows_b_e[c].ravel(), np.einsum("kab,ka->kb", OJ, e[c]).ravel())
-            objective += float(np.einsum("ka,kab,kb->", e[c], W[c], e[c]))
+            if fast:
+                u = edge_errors(p_i[c], p_j[c], g.measurements[c])  # the t2v error
+                Wc = g.information[c]
+                if self.error == "log":  # e = log(u): Jacobians D [A B]
+                    ec, D = se2.log(u), se2.log_jacobian(u)
+                    Dt = np.swapaxes(D, 1, 2)
+                    Om, Oe = Dt @ Wc @ D, np.einsum("kab,kb->ka", Dt @ Wc, ec)
+                    Om = 0.5 * (Om + np.swapaxes(Om, 1, 2))
+                else:
+                    ec, Om, Oe = u, Wc, np.einsum("kab,kb->ka", Wc, u)
+                M, Jte = _normal_blocks(p_i[c], p_j[c], g.measurements[c], Om, Oe)
+            else:
+                ec, Wc = e[c], W[c]
+                OJ = Wc @ J[c]  # Omega J, (c, k, 6)
+                M = np.swapaxes(J[c], 1, 2) @ OJ  # J^T Omega J, (c, 6, 6)
+                M += np.swapaxes(M, 1, 2)  # exactly symmetric, as H is
+                M *= 0.5
+                M = np.moveaxis(M, 0, -1)  # entry-major, (6, 6, c), as the slots
+                Jte = np.einsum("kab,ka->bk", OJ, ec)  # J^T Omega e, (6, c)
+            np.add.at(data, self._slot_e[:, :, c].ravel(), M.ravel())
+            np.add.at(b, self._rows_b_e[:, c].ravel(), Jte.ravel())
+            objective += float(np.einsum("ka,kab,kb->", ec, Wc, ec))
         OJp = self._prior_info @ Jp
         Mp = np.swapaxes(Jp, 1, 2) @ OJp
         Mp = 0.5 * (Mp + np.swapaxes(Mp, 1, 2))
