@@ -21,14 +21,19 @@ import datetime
 import json
 import os
 import platform
-import resource
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
-from importlib import metadata
 from pathlib import Path
+
+from _timing import (  # benchmarks/ is on sys.path when run as a script
+    importable,
+    package_version,
+    peak_rss_mib,
+    vmhwm_mib,
+)
 
 HERE = Path(__file__).resolve().parent
 PEERS = ("gtsam", "g2o", "graphslam")
@@ -73,21 +78,6 @@ PEER_TASK = {
 # ----------------------------------------------------------------------------------------------
 # child: one (library, task, dataset) measurement
 # ----------------------------------------------------------------------------------------------
-
-
-def _maxrss_mib():
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
-
-
-def _vmhwm_mib():
-    """Peak RSS of this address space (Linux ``VmHWM``), the cross-check of ``ru_maxrss``."""
-    try:
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 1024.0
-    except OSError:
-        pass
-    return float("nan")
 
 
 def _measure(prepare, run, runs, budget):
@@ -313,10 +303,10 @@ def child(spec):
     """Run one measurement; print a JSON line; save arrays to ``spec["npz"]``."""
     import numpy as np
 
-    rss_start = _maxrss_mib()
+    rss_start = peak_rss_mib()
     lib, task = spec["lib"], spec["task"]
     __import__(MODULES[lib])
-    rss_import = _maxrss_mib()
+    rss_import = peak_rss_mib()
     make = {
         "lagolib": _lagolib_task,
         "gtsam": _gtsam_task,
@@ -336,8 +326,8 @@ def child(spec):
                 "cpu": cpu,
                 "rss_start": rss_start,
                 "rss_import": rss_import,
-                "rss_peak": _maxrss_mib(),
-                "hwm_peak": _vmhwm_mib(),
+                "rss_peak": peak_rss_mib(),
+                "hwm_peak": vmhwm_mib(),
                 **scalars,
             }
         )
@@ -347,18 +337,6 @@ def child(spec):
 # ----------------------------------------------------------------------------------------------
 # parent
 # ----------------------------------------------------------------------------------------------
-
-
-def _importable(module):
-    code = f"import {module}"
-    return subprocess.run([sys.executable, "-c", code], capture_output=True).returncode == 0
-
-
-def _version(pkg):
-    try:
-        return metadata.version(pkg)
-    except metadata.PackageNotFoundError:
-        return "not installed"
 
 
 def machine():
@@ -488,7 +466,7 @@ def main(argv=None):
     t_start = time.perf_counter()
     load_start = os.getloadavg()
     started = datetime.datetime.now(datetime.timezone.utc)
-    peers = [p for p in args.peers if _importable(MODULES[p])]
+    peers = [p for p in args.peers if importable(MODULES[p])]
     missing = [p for p in args.peers if p not in peers]
     print(
         f"peers: {', '.join(peers) or 'none'}"
@@ -541,7 +519,7 @@ def write_report(args, argv, results, graphs, peers, missing, started, elapsed):
         f"- Command: `{cmd.strip()}`",
         f"- Machine: {m['cpu']}, {m['cores']} cores, {m['ram']} RAM; {m['os']}",
         f"- Python {platform.python_version()}; "
-        + ", ".join(f"{p} {_version(p)}" for p in PACKAGES),
+        + ", ".join(f"{p} {package_version(p)}" for p in PACKAGES),
         "- Load average (1/5/15 min): @LOAD@ at the end (other jobs may share the 2 cores: "
         "compare ratios measured in the same run, not absolute times across runs)",
         f"- Peers run: {', '.join(peers) or 'none'}"
