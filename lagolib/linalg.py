@@ -745,7 +745,7 @@ def selected_inverse(H, *, factor=None):
     H : scipy.sparse matrix, shape (N, N)
         Symmetric positive definite.
     factor : SparseCholesky, optional
-        A qdldl factorization of ``H`` to reuse.
+        A qdldl factorization of ``H`` to reuse (checked by one solve).
 
     Returns
     -------
@@ -769,6 +769,13 @@ def selected_inverse(H, *, factor=None):
         factor = SparseCholesky(H, "qdldl")
     elif not isinstance(factor, SparseCholesky) or factor.shape != H.shape:
         raise OptionTypeError("selected_inverse: factor must be a SparseCholesky of H")
+    else:  # a factor of another matrix would give a wrong inverse: one probe solve says
+        r = np.cos(np.arange(H.shape[0]))
+        if H.shape[0] and not np.allclose(factor.solve(H @ r), r, rtol=1e-6, atol=1e-6):
+            raise OptionError(
+                "selected_inverse: factor is not a factorization of H (a solve with it does not "
+                "invert H); pass the SparseCholesky of this H, or none"
+            )
     L, d, perm = factor.factors()
     N = L.shape[0]
     indptr, indices, data = L.indptr, L.indices, L.data

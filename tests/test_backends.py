@@ -192,6 +192,11 @@ def test_selected_inverse_entries_off_the_pattern_are_refused():
         S.blocks([0, 1])
     with pytest.raises(OptionTypeError, match="SparseCholesky"):
         linalg.selected_inverse(H, factor="qdldl")
+    other = linalg.SparseCholesky(sp.csr_matrix(sp.diags([2.0, 3.0, 5.0])), "qdldl")
+    with pytest.raises(OptionError, match="not a factorization of H"):
+        linalg.selected_inverse(H, factor=other)  # same shape and pattern, another matrix
+    same = linalg.selected_inverse(H, factor=linalg.SparseCholesky(H, "qdldl"))
+    np.testing.assert_allclose(same.entries([0, 1, 2], [0, 1, 2]), [0.5, 1 / 3, 0.25])
 
 
 @pytest.mark.parametrize("frame", ["global", "local"])
