@@ -47,6 +47,7 @@ from .errors import (
 from .graph import (
     ERRORS,
     PoseGraph,
+    _edge_chi2,
     _numeric,
     as_graph_poses,
     describe_bad_information,
@@ -57,7 +58,6 @@ from .graph import (
 from .linalg import (
     BACKENDS,
     SparseCholesky,
-    _auto_backend,
     expand_ordering,
     fill_reducing_ordering,
     pcg,
@@ -127,10 +127,7 @@ def _edge_jacobian(p_i, p_j, z, error):
         se2._as_poses(p_i, "p_i"), se2._as_poses(p_j, "p_j"), se2._as_poses(z, "z")
     )
     e = edge_errors(p_i, p_j, z)  # the t2v error, also for "log" (its argument)
-    a = p_i[..., 2] + z[..., 2]
-    c, s = np.cos(a), np.sin(a)
-    dx = p_j[..., 0] - p_i[..., 0]
-    dy = p_j[..., 1] - p_i[..., 1]
+    c, s, u0, u1 = _jacobian_parts(p_i, p_j, z)
     J = np.zeros(p_i.shape + (6,))
     J[..., 0, 3], J[..., 0, 4] = c, s  # B_ij = [[R_iz^T, 0], [0, 1]]
     J[..., 1, 3], J[..., 1, 4] = -s, c
@@ -138,11 +135,23 @@ def _edge_jacobian(p_i, p_j, z, error):
     J[..., 0, 0], J[..., 0, 1] = -c, -s  # A_ij = -B_ij, but for its last column
     J[..., 1, 0], J[..., 1, 1] = s, -c
     J[..., 2, 2] = -1.0
-    J[..., 0, 2] = -s * dx + c * dy  # d(R_iz^T)/dtheta_i dt, first row
-    J[..., 1, 2] = -c * dx - s * dy
+    J[..., 0, 2], J[..., 1, 2] = u0, u1  # d(R_iz^T)/dtheta_i dt
     if error == "log":
         return se2.log(e), se2.log_jacobian(e) @ J
     return e, J
+
+
+def _jacobian_parts(p_i, p_j, z):
+    """``cos``, ``sin`` of ``theta_i + theta_z`` and ``u = d(R_iz^T)/dtheta_i (t_j - t_i)``.
+
+    The entries of the ``t2v`` Jacobians: ``B_ij = diag(R_iz^T, 1)`` and ``A_ij = -B_ij`` with
+    ``(u0, u1, 0)`` added to its last column (:func:`edge_jacobians`).  Arrays of shape (...).
+    """
+    a = p_i[..., 2] + z[..., 2]
+    c, s = np.cos(a), np.sin(a)
+    dx = p_j[..., 0] - p_i[..., 0]
+    dy = p_j[..., 1] - p_i[..., 1]
+    return c, s, -s * dx + c * dy, -c * dx - s * dy
 
 
 def _normal_blocks(p_i, p_j, z, information, Oe):
@@ -177,10 +186,7 @@ def _normal_blocks(p_i, p_j, z, information, Oe):
     Jte : ndarray, shape (6, c)
         ``J^T Ω e``.
     """
-    ang = p_i[:, 2] + z[:, 2]
-    c, s = np.cos(ang), np.sin(ang)
-    dx, dy = p_j[:, 0] - p_i[:, 0], p_j[:, 1] - p_i[:, 1]
-    u0, u1 = -s * dx + c * dy, -c * dx - s * dy  # A's last column, d(R_iz^T)/dθ_i dt
+    c, s, u0, u1 = _jacobian_parts(p_i, p_j, z)
     Om = information
     a, bxy, d = Om[:, 0, 0], Om[:, 0, 1], Om[:, 1, 1]
     p, q, t = Om[:, 0, 2], Om[:, 1, 2], Om[:, 2, 2]
@@ -616,14 +622,13 @@ class LinearSystem:
 
     def objective(self, poses):
         """χ² of the edges plus the priors' terms at ``poses`` (shape (n, 3)); no Jacobians."""
-        g = self.graph
-        e = edge_errors(
-            poses[g.edges[:, 0]], poses[g.edges[:, 1]], g.measurements, error=self.error
+        edges = self.graph.edges
+        chi = float(
+            _edge_chi2(self.graph, poses[edges[:, 0]], poses[edges[:, 1]], self.error).sum()
         )
         ep = se2.between(self._prior_mean, poses[self._prior_idx])
         if self.error == "log":
             ep = se2.log(ep)
-        chi = float(np.einsum("ka,kab,kb->k", e, g.information, e).sum())  # graph.chi2's sum
         return chi + float(np.einsum("ka,kab,kb->", ep, self._prior_info, ep))
 
     def assemble(self, poses):
@@ -869,8 +874,8 @@ class _LevenbergMarquardtDamping:
 class _LinearSolver:
     """``solve(H, rhs)``: sparse Cholesky (one symbolic analysis, refactored) or PCG.
 
-    ``ordering``, when given, is called once (with the first ``H``'s size) for a fill-reducing
-    ordering handed to PARDISO: :meth:`LinearSystem.ordering`, the pose graph's nested dissection.
+    ``ordering``, when given, is called once, by the first factorization and only for PARDISO:
+    :meth:`LinearSystem.ordering`, the pose graph's nested dissection.
     """
 
     def __init__(self, kind, backend, ordering=None):
@@ -885,9 +890,7 @@ class _LinearSolver:
             self.iterations.append(out.iterations)
             return out.x
         if self.factor is None:
-            backend = _auto_backend(H.shape[0]) if self.backend == "auto" else self.backend
-            order = self._ordering() if self._ordering and backend == "pardiso" else None
-            self.factor = SparseCholesky(H, backend, check=False, ordering=order)
+            self.factor = SparseCholesky(H, self.backend, check=False, ordering=self._ordering)
         else:
             self.factor.refactor(H)
         return self.factor.solve(rhs)

@@ -863,9 +863,14 @@ def chi2(graph, poses=None, *, per_edge=False, error="t2v"):
     -------
     float, or ndarray of shape (m,) when ``per_edge``
     """
-    e = residuals(graph, poses, error=error)
-    terms = np.einsum("ka,kab,kb->k", e, graph.information, e)
+    terms = _edge_chi2(graph, *_edge_arrays(graph, poses), error)
     return terms if per_edge else float(terms.sum())
+
+
+def _edge_chi2(graph, p_i, p_j, error):
+    """``e_ij^T Omega_ij e_ij`` per edge at endpoint poses ``p_i``, ``p_j`` (unchecked), (m,)."""
+    e = edge_errors(p_i, p_j, graph.measurements, error=error)
+    return np.einsum("ka,kab,kb->k", e, graph.information, e)
 
 
 def vertex_rows(graph, vertices, what="vertex"):

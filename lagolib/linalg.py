@@ -106,13 +106,7 @@ def _mkl_runtime():
 
 def available_backends():
     """The Cholesky backends importable here (``"qdldl"`` and ``"scipy"`` are always there)."""
-    out = []
-    try:
-        import qdldl  # noqa: F401
-
-        out.append("qdldl")
-    except ImportError:  # pragma: no cover - qdldl is a dependency
-        pass
+    out = ["qdldl"] if _have_qdldl() else []
     if _mkl_runtime() is not None:
         out.append("pardiso")
     out.append("scipy")
@@ -123,11 +117,16 @@ def _auto_backend(N):
     """``backend="auto"`` for a system of ``N`` rows (see :data:`PARDISO_MIN_SIZE`)."""
     if N >= PARDISO_MIN_SIZE and _mkl_runtime() is not None:  # MKL is loaded only then
         return "pardiso"
+    return "qdldl" if _have_qdldl() else "scipy"
+
+
+def _have_qdldl():
+    """Whether qdldl imports (it is a dependency; SuperLU stands in if it is broken)."""
     try:
         import qdldl  # noqa: F401
     except ImportError:  # pragma: no cover - qdldl is a dependency
-        return "scipy"
-    return "qdldl"
+        return False
+    return True
 
 
 def _check_square(H, where="SparseCholesky", *, check=True):
@@ -180,23 +179,35 @@ _PARDISO_ERRORS = {
 }
 
 
-def _pardiso_release(lib, pt, n):
-    """Free PARDISO's internal memory for one handle ``pt`` (phase -1)."""
+def _pardiso_call(lib, pt, phase, n, data, indptr, indices, ordering, iparm, b, x):
+    """One call of MKL's ``pardiso`` for a real SPD matrix (``mtype = 2``); its error code.
+
+    ``data``, ``b`` and ``x`` are float64 arrays, ``indptr``, ``indices``, ``ordering`` and
+    ``iparm`` int32 arrays; ``b`` holds ``nrhs = b.shape[1]`` (or 1) right-hand sides.
+    """
     import ctypes
 
-    i32 = ctypes.c_int32
-    dummy_i = np.zeros(1, dtype=np.int32)
-    dummy_d = np.zeros(1)
-    iparm = np.zeros(64, dtype=np.int32)
+    i32, f64 = ctypes.c_int32, ctypes.c_double
     err = i32(0)
-    ip = dummy_i.ctypes.data_as(ctypes.POINTER(i32))
-    dp = dummy_d.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
     one = ctypes.byref(i32(1))
+    nrhs = 1 if b.ndim == 1 else b.shape[1]
+
+    def ptr(a, kind):
+        return a.ctypes.data_as(ctypes.POINTER(kind))
+
     lib.pardiso(
         pt.ctypes.data_as(ctypes.c_void_p), one, one, ctypes.byref(i32(2)),
-        ctypes.byref(i32(-1)), ctypes.byref(i32(n)), dp, ip, ip, ip, one,
-        iparm.ctypes.data_as(ctypes.POINTER(i32)), ctypes.byref(i32(0)), dp, dp, ctypes.byref(err),
+        ctypes.byref(i32(phase)), ctypes.byref(i32(n)), ptr(data, f64), ptr(indptr, i32),
+        ptr(indices, i32), ptr(ordering, i32), ctypes.byref(i32(nrhs)), ptr(iparm, i32),
+        ctypes.byref(i32(0)), ptr(b, f64), ptr(x, f64), ctypes.byref(err),
     )  # fmt: skip
+    return err.value
+
+
+def _pardiso_release(lib, pt, n):
+    """Free PARDISO's internal memory for one handle ``pt`` (phase -1)."""
+    i, d = np.zeros(1, dtype=np.int32), np.zeros(1)
+    _pardiso_call(lib, pt, -1, n, d, i, i, i, np.zeros(64, dtype=np.int32), d, d)
 
 
 class _Pardiso:
@@ -239,29 +250,12 @@ class _Pardiso:
         self._call(11, U.data)
 
     def _call(self, phase, data, b=None):
-        import ctypes
-
-        i32, f64 = ctypes.c_int32, ctypes.c_double
-        if b is None:
-            b = x = np.zeros(1)
-            nrhs = 1
-        else:
-            x = np.empty_like(b)
-            nrhs = 1 if b.ndim == 1 else b.shape[1]
-        err = i32(0)
-        one = ctypes.byref(i32(1))
-        self._lib.pardiso(
-            self.pt.ctypes.data_as(ctypes.c_void_p), one, one, ctypes.byref(i32(2)),
-            ctypes.byref(i32(phase)), ctypes.byref(i32(self.n)),
-            data.ctypes.data_as(ctypes.POINTER(f64)),
-            self.indptr.ctypes.data_as(ctypes.POINTER(i32)),
-            self.indices.ctypes.data_as(ctypes.POINTER(i32)),
-            self.ordering.ctypes.data_as(ctypes.POINTER(i32)), ctypes.byref(i32(nrhs)),
-            self.iparm.ctypes.data_as(ctypes.POINTER(i32)),
-            ctypes.byref(i32(0)), b.ctypes.data_as(ctypes.POINTER(f64)),
-            x.ctypes.data_as(ctypes.POINTER(f64)), ctypes.byref(err),
+        b = np.zeros(1) if b is None else b
+        x = np.empty_like(b)
+        code = _pardiso_call(
+            self._lib, self.pt, phase, self.n, data, self.indptr, self.indices, self.ordering,
+            self.iparm, b, x,
         )  # fmt: skip
-        code = err.value
         if code == -4 or code == -7:
             raise NotPositiveDefiniteError(
                 f"sparse Cholesky (PARDISO): {_PARDISO_ERRORS[code]}; the matrix is singular or "
@@ -309,11 +303,12 @@ class SparseCholesky:
     check : bool
         Check that ``H`` (and every later one given to :meth:`refactor`) is finite and
         symmetric — ``O(nnz)``; lagolib's optimizer, which builds ``H`` symmetric, skips it.
-    ordering : array_like of int, shape (N,), optional
+    ordering : array_like of int, shape (N,), or callable, optional
         A fill-reducing ordering for PARDISO (row ``k`` of the factor is row ``ordering[k]`` of
         ``H``), e.g. a pose graph's nested dissection expanded to its unknowns
-        (:func:`expand_ordering`), so that METIS runs once per graph, not once per matrix.
-        qdldl and SuperLU compute their own (AMD, MMD).
+        (:func:`expand_ordering`), so that METIS runs once per graph, not once per matrix; a
+        callable returning it (or None) is called only when the backend is PARDISO.  qdldl and
+        SuperLU compute their own (AMD, MMD).
 
     Attributes
     ----------
@@ -346,8 +341,6 @@ class SparseCholesky:
 
     def __init__(self, H, backend="auto", *, check=True, ordering=None):
         backend = check_choice(backend, "backend", "SparseCholesky", ("auto",) + BACKENDS)
-        if ordering is not None:
-            ordering = _check_ordering(ordering, H.shape[0] if hasattr(H, "shape") else -1)
         self._check = check_bool(check, "check", "SparseCholesky")
         _check_square(H, "SparseCholesky", check=False)
         if backend == "auto":
@@ -357,6 +350,10 @@ class SparseCholesky:
                 f"SparseCholesky: backend='pardiso' needs Intel MKL, but {_MKL['why']}; install it "
                 "with pip install \"lagolib[fast]\" or use backend='qdldl'"
             )
+        if callable(ordering):  # computed only when PARDISO will use it
+            ordering = ordering() if backend == "pardiso" else None
+        if ordering is not None:
+            ordering = _check_ordering(ordering, H.shape[0])
         self.backend = backend
         self.shape = H.shape
         self.ordering = ordering
@@ -374,22 +371,7 @@ class SparseCholesky:
             return self
         if self.backend == "scipy":
             self._factor_scipy(H)
-        elif self.backend == "pardiso":
-            self._factor_pardiso(H)
-        else:
-            U = sp.triu(H, format="csc")  # qdldl reads the upper triangle, by columns
-            U.sort_indices()
-            _check_diagonal(U.diagonal(), self.backend)
-            same = (
-                self._pattern is not None
-                and np.array_equal(U.indptr, self._pattern[0])
-                and np.array_equal(U.indices, self._pattern[1])
-            )  # the symbolic analysis holds only for the same pattern
-            self._factor_qdldl(U, same)
-        return self
-
-    def _factor_pardiso(self, H):
-        """PARDISO on the upper triangle in CSR; a new analysis only for a new pattern of ``H``."""
+            return self
         H = H if H.format == "csr" else sp.csr_matrix(H)
         if not H.has_sorted_indices:
             H = H.sorted_indices()
@@ -399,35 +381,28 @@ class SparseCholesky:
                 np.array_equal(H.indptr, self._pattern[0])
                 and np.array_equal(H.indices, self._pattern[1])
             )
-        )
+        )  # the symbolic analysis holds only for the same pattern
         if not same:
             self._solver = self._pattern = None  # frees the previous analysis before a new one
-            N = H.shape[0]
-            if H.nnz >= 2**31 - 1:
-                raise BackendError(
-                    f"sparse Cholesky (PARDISO): {H.nnz} stored entries exceed the 32-bit "
-                    "interface lagolib calls; use backend='qdldl'"
-                )
-            rows = np.repeat(np.arange(N), np.diff(H.indptr))
-            self._upper = np.flatnonzero(H.indices >= rows)  # entries of the upper triangle
-            del rows
-            indptr = np.zeros(N + 1, dtype=np.int32)
-            np.cumsum(np.diff(np.searchsorted(self._upper, H.indptr)), out=indptr[1:])
-            indices = H.indices[self._upper].astype(np.int32)
-            self._first = indptr[:-1]  # each row of U starts with its diagonal, when stored
-            has_diag = np.diff(indptr) > 0
-            has_diag[has_diag] = indices[self._first[has_diag]] == np.flatnonzero(has_diag)
-            _check_diagonal(has_diag.astype(float), self.backend)
-            self._solver = _Pardiso(
-                sp.csr_matrix((H.data[self._upper], indices, indptr), shape=H.shape),
-                self.ordering,
-            )
-            self.ordering = self._solver.ordering.astype(np.int64)
-            self._pattern = (H.indptr, H.indices)  # kept, not copied: O(nnz) memory at 10^6 poses
-        self._data = np.ascontiguousarray(H.data[self._upper], dtype=float)
-        _check_diagonal(self._data[self._first], self.backend)
-        self._solver.factor(self._data)
-        self.nnz_L = self._solver.nnz_L
+            self._upper = _upper_triangle(H, "csc" if self.backend == "qdldl" else "csr")
+        perm, indptr, indices, (dpos, drows) = self._upper
+        data = np.ascontiguousarray(H.data[perm], dtype=float)
+        d = np.zeros(self.shape[0])  # a missing diagonal entry is a zero one
+        d[drows] = data[dpos]
+        _check_diagonal(d, self.backend)
+        U = sp.csr_matrix if self.backend == "pardiso" else sp.csc_matrix
+        U = U((data, indices, indptr), shape=self.shape)
+        if self.backend == "qdldl":
+            self._factor_qdldl(U, same)
+        else:
+            if not same:
+                self._solver = _Pardiso(U, self.ordering)
+                self.ordering = self._solver.ordering.astype(np.int64)
+            self._data = data
+            self._solver.factor(data)
+            self.nnz_L = self._solver.nnz_L
+        self._pattern = (H.indptr, H.indices)  # kept, not copied: O(nnz) memory at 10^6 poses
+        return self
 
     def _factor_qdldl(self, U, same):
         import qdldl
@@ -441,7 +416,6 @@ class SparseCholesky:
             self._solver = self._pattern = None
             what = "the matrix is zero" if U.nnz == 0 else "the matrix is singular or indefinite"
             raise NotPositiveDefiniteError(f"sparse Cholesky (qdldl) failed: {what}") from None
-        self._pattern = (U.indptr.copy(), U.indices.copy())
         L, d, perm = self._solver.factors()
         self.nnz_L = int(L.nnz) + d.size
         bad = np.flatnonzero(~(d > 0))
@@ -593,6 +567,34 @@ def expand_ordering(perm, rows):
     """
     out = np.asarray(rows)[perm].ravel()
     return out[out >= 0]
+
+
+def _upper_triangle(H, fmt):
+    """Where the upper triangle of ``H`` (CSR, sorted) sits, for a backend's format.
+
+    Returns ``(perm, indptr, indices, diag)``: ``U.data = H.data[perm]`` with ``U``'s
+    ``indptr`` and ``indices`` in ``fmt`` (``"csr"``: PARDISO's rows; ``"csc"``: qdldl's
+    columns), and ``diag = (positions, rows)`` of the stored diagonal entries in ``U.data``.
+    Computed once per sparsity pattern; every refactorization is then one gather.
+    """
+    N = H.shape[0]
+    if H.nnz >= 2**31 - 1:
+        raise BackendError(
+            f"sparse Cholesky: {H.nnz} stored entries exceed the 32-bit indices lagolib's "
+            "backends use; split the problem or use backend='scipy'"
+        )
+    rows = np.repeat(np.arange(N, dtype=np.int64), np.diff(H.indptr))
+    cols = H.indices
+    perm = np.flatnonzero(cols >= rows)  # the upper triangle, in row order
+    major, minor = (rows[perm], cols[perm]) if fmt == "csr" else (cols[perm], rows[perm])
+    del rows
+    if fmt == "csc":
+        order = np.lexsort((minor, major))  # by column, then row
+        perm, major, minor = perm[order], major[order], minor[order]
+    indptr = np.zeros(N + 1, dtype=np.int32)
+    np.cumsum(np.bincount(major, minlength=N), out=indptr[1:])
+    diag = np.flatnonzero(major == minor)
+    return perm, indptr, minor.astype(np.int32), (diag, major[diag])
 
 
 def _same_memory(a, b):
