@@ -2,9 +2,9 @@
 
 Layers (each imports only from the ones before it)::
 
-    errors -> se2 -> checks -> graph -> io, simulate, metrics -> datasets -> topology -> linalg
-    -> estimation -> gauss_newton, lago, sgd -> closed_form -> certify -> plotting -> uncertainty
-    -> book -> cli;   symbolic (sympy only)
+    errors -> files (atomic writes) -> se2 -> checks -> graph -> io, simulate, metrics
+    -> datasets -> topology -> linalg -> estimation -> gauss_newton, lago, sgd -> closed_form
+    -> certify -> plotting -> uncertainty -> book -> cli;   symbolic (sympy only)
 
 Public API
 ----------
@@ -77,6 +77,8 @@ from . import (
 )
 from .errors import (
     BackendError,
+    BackendWarning,
+    ConditioningWarning,
     ConvergenceError,
     DatasetError,
     GaugeError,
@@ -167,5 +169,7 @@ __all__ = [
     "OptionTypeError",
     "LagolibWarning",
     "SkippedLinesWarning",
+    "BackendWarning",
+    "ConditioningWarning",
     "RegularizationWarning",
 ]

@@ -5,7 +5,7 @@
     lagolib info FILE                  counts, connectivity, odometric chain, regularization per
                                        spanning tree, information isotropy, chi2 at the file's poses
     lagolib solve FILE --method M -o OUT.g2o [--plot OUT.png] [--progress] [--certify]
-                                       M in lago, gn, lm, lago+gn, sgd; writes the solved graph
+                  [--backend B]        M in lago, gn, lm, lago+gn, sgd; writes the solved graph
     lagolib certify FILE [--initial odometry|lago] [--max-escapes N] [-o OUT.g2o]
                                        is it the global optimum? LAGO -> Gauss-Newton -> chordal
                                        polish -> certificate (-> escape), :func:`lagolib.certify.solve`
@@ -19,8 +19,12 @@ a shipped example (``square_loop``, ``manhattan200``, ``grid100``).
 
 Errors print one line, ``lagolib: error: ...``, on stderr: the exit status is 2 for a usage error
 (an unknown option, method or value) and 1 for anything else (a missing file, a parse error — the
-message names ``file:line`` —, a graph lagolib cannot solve).  ``--debug`` (anywhere on the
-command line) adds the traceback.  An interrupt (Ctrl-C) exits with 130, without a traceback.
+message names ``file:line`` —, a graph lagolib cannot solve, a benchmark that cannot be
+downloaded: the line names the shipped examples, which work offline, and ``LAGOLIB_DATA``).  A
+suggestion the library words for Python callers (``backend='qdldl'``, ``ignore_unknown=True``)
+is printed as the option to type (``--backend qdldl``, ``--ignore-unknown``).  ``--debug``
+(anywhere on the command line) adds the traceback.  An interrupt (Ctrl-C) exits with 130,
+without a traceback.
 ``lagolib certify`` and ``lagolib solve --certify`` exit with 3 (:data:`NOT_CERTIFIED`) when
 everything ran but the poses could not be certified globally optimal, so that scripts can tell.
 Warnings (e.g. :class:`lagolib.lago.RegularizationWarning`) print one line each,
@@ -31,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import inspect
 import io
 import json
@@ -45,11 +50,20 @@ from pathlib import Path
 import numpy as np
 
 from . import book, certify, datasets, se2, topology
-from .errors import GraphError, LagolibError, LagolibWarning, OptionError, OptionTypeError
+from .errors import (
+    DatasetError,
+    GraphError,
+    LagolibError,
+    LagolibWarning,
+    OptionError,
+    OptionTypeError,
+)
+from .files import atomic_write
 from .gauss_newton import optimize
 from .graph import ERRORS, chi2, vertex_rows
 from .io import detect_format, read, read_poses, write
 from .lago import lago, regularize
+from .linalg import BACKENDS
 from .sgd import sgd
 
 __all__ = ["main", "COMMANDS", "METHODS", "INITIALS", "NOT_CERTIFIED"]
@@ -168,7 +182,18 @@ def _resolve(name):
                 f"dataset {name!r} holds ground-truth poses, not a graph; give it to "
                 "'lagolib plot GRAPH --poses' instead"
             )
-        return datasets.path(name)
+        try:
+            return datasets.path(name)
+        except DatasetError as exc:
+            reason = getattr(exc, "reason", None)
+            if reason is None:  # a mirror without the file, a corrupt mirror: its own message
+                raise
+            raise LagolibError(
+                f"cannot get the benchmark {name!r}: {reason}; work offline with a shipped "
+                f"example ({', '.join(datasets.examples())}, e.g. 'lagolib info "
+                f"{datasets.examples()[0]}'), or set LAGOLIB_DATA to a folder that mirrors the "
+                "benchmarks"
+            ) from exc
     if name in datasets.examples():
         return datasets.data_dir() / f"{name}.g2o"
     raise LagolibError(
@@ -180,14 +205,7 @@ def _resolve(name):
 def _load(name, ignore_unknown):
     """``(path, graph, has_vertex_lines)`` of ``FILE``."""
     path = _resolve(name)
-    try:
-        graph = read(path, ignore_unknown=ignore_unknown)
-    except LagolibError as exc:
-        hint = "pass ignore_unknown=True"
-        if hint not in str(exc):
-            raise
-        # the reader's hint is for Python callers: say it for the shell
-        raise LagolibError(str(exc).replace(hint, "pass --ignore-unknown")) from exc
+    graph = read(path, ignore_unknown=ignore_unknown)  # hints for Python callers: see _for_shell
     with open(path, "rb") as f:
         has_vertices = _VERTEX_LINE.search(f.read()) is not None
     return path, graph, has_vertices
@@ -429,11 +447,33 @@ def _sgd_progress(graph, error, sink, t0, chi_start):
 
 
 # ----------------------------------------------------------------------------- solve
+#: Why ``--method M`` can end above the chi2 of the file's poses, and what to do then.
+_WORSE = {
+    "lago": "LAGO is a linear approximation computed without the file's poses, and these are "
+    "better (already optimized?); refine LAGO with --method lago+gn, or run --method gn from the "
+    "file's poses",
+    "lago+gn": "Gauss-Newton from LAGO's poses reached another local minimum than the file's "
+    "poses are near; --method gn starts from the file's poses",
+    "gn": "Gauss-Newton's steps increased the error; --method lm controls the step size",
+    "lm": "Levenberg-Marquardt should never end above its start; please report it",
+    "sgd": "SGD corrects constraints one at a time, not the weighted sum; from a good start use "
+    "--method gn or lm",
+}
+#: ``solve`` warns when chi2 ends above ``before * (1 + _WORSE_RTOL) + _WORSE_ATOL`` (not for
+#: rounding: Gauss-Newton started at an optimum ends there to about 1e-15 relative).
+_WORSE_RTOL, _WORSE_ATOL = 1e-9, 1e-12
+
+
 def _check_solve_options(args):
     m = args.method
     if args.tree is not None and m not in ("lago", "lago+gn", "sgd"):
         raise _UsageError(
             f"solve: --tree is used by --method lago, lago+gn and sgd, not by --method {m}"
+        )
+    if args.backend is not None and m == "sgd":
+        raise _UsageError(
+            "solve: --backend chooses the sparse Cholesky of lago, gn, lm and lago+gn; --method "
+            "sgd factors nothing"
         )
     if args.iterations is not None and m == "lago":
         raise _UsageError(
@@ -444,6 +484,8 @@ def _check_solve_options(args):
 
 def _run_lago(graph, args, sink, t0):
     kw = {} if args.tree is None else {"tree": args.tree}
+    if args.backend is not None:
+        kw["backend"] = args.backend
     res = lago(graph, **kw)
     if sink is not None:
         t = res.timings
@@ -460,12 +502,14 @@ def _run_lago(graph, args, sink, t0):
 
 def _run_optimize(graph, initial, method, args, sink, t0):
     kw = {} if args.iterations is None else {"max_iterations": args.iterations}
+    if args.backend is not None:
+        kw["backend"] = args.backend
     stamped = _Stamped(sink, f"[{method}] ", t0) if sink is not None else None
     with contextlib.redirect_stdout(stamped) if stamped else contextlib.nullcontext():
         res = optimize(
             graph, initial, method=method, error=args.error, verbose=sink is not None, **kw
         )
-    note = "" if res.converged else f" (not converged: {res.reason})"
+    note = "" if res.converged else f" (not converged: {_for_shell(res.reason, 'solve')})"
     return res.poses, res.iterations, note
 
 
@@ -514,11 +558,11 @@ def _cmd_solve(args):
         )
     solved = graph.with_poses(poses)
     after = chi2(solved, error=args.error)
-    if after > before:
+    if after > before * (1.0 + _WORSE_RTOL) + _WORSE_ATOL:
+        start = "the file's poses" if has_vertices else "the odometry guess"
         warnings.warn(
-            f"--method {args.method} ended at chi2 {after:.10g}, above the {before:.10g} it "
-            "started from (SGD corrects constraints one at a time, not the weighted sum; from a "
-            "good start use gn or lm)",
+            f"--method {args.method} ended at chi2 {after:.10g}, above the {before:.10g} of "
+            f"{start}: {_WORSE[args.method]}",
             LagolibWarning,
             stacklevel=1,
         )
@@ -541,7 +585,7 @@ def _cmd_solve(args):
     if checked is None:
         return 0
     ref, cert = checked
-    lines = _certificate_lines(cert, cert.f, cert.lower_bound)
+    lines = _certificate_lines(cert, cert)
     lines[0] += f" (the chordal minimum next to the solved poses: {ref.iterations} Newton steps)"
     print("\n".join(lines))
     return 0 if cert.certified else NOT_CERTIFIED
@@ -571,30 +615,53 @@ def _stage_line(stage):
     return f"  {stage['stage']:<26s}{stage['seconds'] * 1e3:9.1f} ms  {info}"
 
 
-def _certificate_lines(cert, f, lower_bound, lambda_min=None):
+def _certificate_lines(res, cert, lambda_min=None):
     """The lines both ``certify`` and ``solve --certify`` print: chordal f, certified, λ_min,
-    the lower bound and the gap.  ``lambda_min``: a computed value to print instead of the
-    certificate's (None: the certificate's, or "> -eta" when it computed none)."""
-    gap = max(f - lower_bound, 0.0)
-    relative = gap / f if f > 0 else 0.0
-    if cert.certified:
+    the lower bound and the gap.  ``res``: what gives the verdict, f, bound and gap (the
+    SolveResult, or the Certificate); ``cert``: the point's Certificate (λ_min, eta, tolerance);
+    ``lambda_min``: a computed value to print instead of the certificate's (None: the
+    certificate's, or "> -eta" when it computed none).  A sum of squares is printed as one:
+    ``f`` and the bound never below 0, and the relative gap against ``max(f, f_scale)``."""
+    f = max(float(res.f), 0.0)
+    bound = min(max(float(res.lower_bound), 0.0), f)
+    gap = f - bound
+    scale = max(f, cert.f_scale, np.finfo(float).tiny)
+    if res.certified:
         verdict = (
-            f"yes: a global minimum of the chordal cost f (lambda_min(S~) >= -eta, eta "
-            f"{cert.eta:.3g})"
+            f"yes: f is at most {gap:.3g} above the global minimum of the chordal cost (the "
+            f"certificate's tolerance is {cert.tolerance:.3g})"
+        )
+    elif cert.saddle or res is not cert:
+        verdict = (
+            "no: the global minimum of the chordal cost may be lower than f, by at most the gap"
+            + (" (lambda_min(S~) < 0: a direction of negative curvature)" if cert.saddle else "")
         )
     else:
         verdict = (
-            f"no: lambda_min(S~) < -eta (eta {cert.eta:.3g}); a global minimum may be lower, by "
-            "at most the gap"
+            "no: the point is not stationary enough to be certified (f - sum(lambda) = "
+            f"{cert.stationarity:.3g}, the tolerance {cert.tolerance:.3g}); the global minimum "
+            "may be lower than f, by at most the gap"
         )
     lam = cert.lambda_min if lambda_min is None else lambda_min
+    if lam is None:
+        lam_text = f"> -{cert.eta:.3g} (not computed: one factorization at eta {cert.eta:.3g})"
+    else:
+        lam_text = format(lam, ".10g")
+    bound_text = f"{bound:.10g} (on f at any poses: the global minimum is in [bound, f])"
+    if res.lower_bound < 0:
+        bound_text += (
+            f"; the dual bound sum(lambda) + n min(lambda_min, 0) is {res.lower_bound:.6g}, "
+            "below the 0 of any sum of squares"
+        )
+    relative = f"relative {gap / scale:.3g}"
+    if scale > f:
+        relative += f" to the cost's rounding scale {cert.f_scale:.3g}, as f is below it"
     return [
         f"chordal f         {f:.10g}",
         f"certified         {verdict}",
-        f"lambda_min        {'> -eta' if lam is None else format(lam, '.10g')}",
-        f"lower bound       {lower_bound:.10g} (on f at any poses: the global minimum is in "
-        "[bound, f])",
-        f"gap               {gap:.6g} (relative {relative:.3g})",
+        f"lambda_min        {lam_text}",
+        f"lower bound       {bound_text}",
+        f"gap               {gap:.6g} ({relative})",
     ]
 
 
@@ -609,8 +676,9 @@ def _certify_poses(graph, poses, sink, t0):
     Returns ``(refine result, Certificate)``; ``poses`` (what ``-o`` writes) are not changed.
     """
     problem = certify.chordal_problem(graph)
-    ref = certify.refine(problem, poses)
-    cert = certify.certify(problem, ref.poses)
+    with _internal("solve --certify"):
+        ref = certify.refine(problem, poses)
+        cert = certify.certify(problem, ref.poses)
     if sink is not None:
         sink.write(
             f"[certify] chordal polish: f {ref.chi2:.10g}, {ref.iterations} iterations, "
@@ -621,6 +689,19 @@ def _certify_poses(graph, poses, sink, t0):
         )
         sink.flush()
     return ref, cert
+
+
+@contextlib.contextmanager
+def _internal(command):
+    """The options were checked when parsed: an option error raised by the library under
+    ``command`` is not the user's (exit status 2 would blame them) but an internal error."""
+    try:
+        yield
+    except (OptionError, OptionTypeError) as exc:
+        raise LagolibError(
+            f"{command}: internal error: {_one_line(exc)} (not a problem with the command line; "
+            "please report it)"
+        ) from exc
 
 
 def _start_line(args, graph, has_vertices, res):
@@ -651,7 +732,10 @@ def _cmd_certify(args):
         sink.write(f"[certify] start: {start}, at most {args.max_escapes} escape(s)\n")
         sink.flush()
     stamped = _Stamped(sink, "[certify] ", t0) if sink is not None else None
-    with contextlib.redirect_stdout(stamped) if stamped else contextlib.nullcontext():
+    with (
+        contextlib.redirect_stdout(stamped) if stamped else contextlib.nullcontext(),
+        _internal("certify"),
+    ):
         res = certify.solve(
             graph,
             graph.poses if args.initial == "odometry" else None,
@@ -663,9 +747,10 @@ def _cmd_certify(args):
     eigenvalues, seconds = None, 0.0
     if args.eigenvalues:
         problem = certify.chordal_problem(graph)
-        extra = certify.certify(
-            problem, res.chordal_poses, eta=args.eta, eigenvalues=args.eigenvalues
-        )
+        with _internal("certify"):
+            extra = certify.certify(
+                problem, res.chordal_poses, eta=args.eta, eigenvalues=args.eigenvalues
+            )
         eigenvalues, seconds = extra.eigenvalues, extra.seconds
         if sink is not None:
             sink.write(
@@ -683,13 +768,12 @@ def _cmd_certify(args):
         *map(_stage_line, res.stages),
         f"chi2              {res.chi2:.10g} (t2v, g2o's chi2, at the poses -o writes)",
         *_certificate_lines(
+            res,
             res.certificate,
-            res.f,
-            res.lower_bound,
             None if eigenvalues is None or not eigenvalues.size else float(eigenvalues[0]),
         ),
         f"escapes           {res.escapes} (at most {args.max_escapes})",
-        f"reason            {res.reason}",
+        f"reason            {_for_shell(res.reason, 'certify')}",
         f"time              {res.timings['total']:.3f} s"
         + (f" (+ {seconds:.3f} s for the eigenvalues)" if eigenvalues is not None else ""),
     ]
@@ -716,7 +800,10 @@ def _save_figure(draw, output, dpi):
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     draw(ax)
-    fig.savefig(output, dpi=dpi)
+    # drawn in full first, then written beside OUT and moved into place: a failed or killed
+    # write leaves the previous OUT as it was
+    with atomic_write(output, "wb") as f:
+        fig.savefig(f, dpi=dpi, format=Path(output).suffix.lower().lstrip("."))
 
 
 def _draw_graph(ax, graph, title):
@@ -930,6 +1017,13 @@ def _parser():
         "(default: sgd's own)",
     )
     p.add_argument(
+        "--backend",
+        choices=("auto",) + BACKENDS,
+        default=None,
+        help="sparse Cholesky of lago, gn, lm and lago+gn (default: auto, PARDISO for large "
+        "systems when MKL is installed, else qdldl)",
+    )
+    p.add_argument(
         "--error",
         choices=ERRORS,
         default="t2v",
@@ -967,18 +1061,23 @@ def _parser():
             "Solve a pose graph and certify that the answer is the global optimum\n"
             "(lagolib.certify.solve; Carlone et al., TRO 2016; SE-Sync, Rosen et al. 2019):\n"
             "  LAGO (or the file's poses, --initial odometry) -> Gauss-Newton on chi2\n"
-            "  -> Newton polish of the chordal cost f -> the dual certificate: certified when\n"
-            "     lambda_min(S~) >= -eta (a sparse factorization of S~ + eta I)\n"
+            "  -> Newton polish of the chordal cost f -> the dual certificate: a lower bound\n"
+            "     on the global minimum of f (a sparse factorization of S~ + eta I, and\n"
+            "     lambda_min(S~) when needed); certified when f - bound is within its\n"
+            "     tolerance (about 2e-7 of the sum of |Lagrange multipliers|)\n"
             "  -> if not: escape along the eigenvector of lambda_min (one rank up the\n"
             "     Riemannian staircase), polish, round, certify again, at most --max-escapes\n"
-            "     times -> Gauss-Newton on chi2 from the best chordal minimum.\n"
+            "     times (and a budget of Newton iterations; when the staircase cannot go on it\n"
+            "     stops with the best bound) -> Gauss-Newton on chi2 from the best chordal\n"
+            "     minimum.\n"
             "Prints the stages, chi2, f, the certificate, a lower bound on the global minimum\n"
             "of f, the gap f - bound, the escapes and why it stopped.  --progress prints\n"
             "the stages on stderr as they end; the summary goes to stdout.  -o writes the\n"
             "chi2 poses (as 'lagolib solve -o' does), certified or not.\n\n"
             f"exit status: 0 certified globally optimal; {NOT_CERTIFIED} ran, but NOT certified\n"
-            "(a local minimum the escape budget did not leave, or a relaxation that is not\n"
-            "tight); 1 error; 2 usage error.\n\n"
+            "(a local minimum the escape budget did not leave, a relaxation that is not\n"
+            "tight, or a staircase that could not go on: the gap says how far from optimal\n"
+            "f can be); 1 error; 2 usage error.\n\n"
             "examples:\n"
             "  lagolib certify mit --initial odometry\n"
             "  lagolib certify intel --eigenvalues 3 --progress -o intel_optimal.g2o"
@@ -1009,8 +1108,11 @@ def _parser():
         type=_nonnegative_float,
         default=None,
         metavar="X",
-        help=f"the certificate's tolerance, lambda_min(S~) >= -X (default: {certify.ETA:g} x "
-        "the mean Lagrange multiplier)",
+        help="the shift of the certificate's first test: one factorization of S~ + X I proves "
+        "lambda_min(S~) > -X and f* >= sum(lambda) - n X; when that bound does not certify (or "
+        "the test fails) lambda_min is computed instead.  X sets the work, not what 'certified' "
+        f"means (default: {certify.ETA:g} x the mean |Lagrange multiplier|, the largest shift "
+        "whose bound can certify)",
     )
     p.add_argument(
         "--eigenvalues",
@@ -1079,9 +1181,98 @@ def _parser():
     return top
 
 
+# ----------------------------------------------------------------------------- messages
+#: Suggestions in library messages spelled for Python callers, and the option to type in the
+#: shell instead: ``(pattern, option, text for a command without that option)``; ``{v}`` is the
+#: value the pattern captured.  A command without the option names one that has it, unless the
+#: third entry says what to print instead.
+_SHELL_OPTIONS = (
+    (r"\bignore_unknown=True\b", "--ignore-unknown", None),
+    (r"\bbackend='(\w+)'", "--backend {v}", None),
+    (r"\bmethod='([\w+]+)'", "--method {v}", None),
+    (r"\btree='(\w+)'", "--tree {v}", None),
+    (r"\bmax_iterations=(\d+)", "--iterations {v}", "its cap of {v} iterations"),
+    (r"\bmax_escapes=(\d+)", "--max-escapes {v}", "its cap of {v} escapes"),
+    (r"\bforce=True\b", "--force", None),
+    (r"\bbook_dir='([^']*)'", "--book {v}", None),
+)
+#: Python advice in library messages that no option expresses, and what to say in the shell.
+_SHELL_PHRASES = (
+    (
+        r"fix one of its poses \(fixed=\[[^\]]*\]\) or add a prior "
+        r"\(prior=lagolib\.Prior\([^)]*\)\)",
+        "connect it to the rest of the graph with an edge, or give each component a file of its "
+        "own (the lagolib command fixes one pose: the one with the smallest id)",
+    ),
+    (
+        r"certify each component \(PoseGraph\.components gives the labels\)",
+        "certify each component from a file of its own",
+    ),
+    (r"lagolib\.datasets\.path\('([^']*)'\)", r"'lagolib info \1'"),
+    (r"\bout_dir='([^']*)'", r"OUTDIR \1"),
+)
+#: Options of the commands handed to another module's ``main`` (not in :func:`_parser`).
+_DELEGATED_OPTIONS = {"book": {"-h", "--help", "--book", "--force"}}
+
+
+@functools.cache
+def _command_options():
+    """``{command: set of its option strings}``, read from the parser."""
+    top = _parser()
+    sub = next(a for a in top._actions if isinstance(a, argparse._SubParsersAction))
+    options = {name: set(p._option_string_actions) for name, p in sub.choices.items()}
+    return options | _DELEGATED_OPTIONS
+
+
+def _for_shell(text, command):
+    """``text`` (a library message) with its suggestions for Python callers written as what to
+    type in the shell for ``command``: ``backend='qdldl'`` becomes ``--backend qdldl``."""
+    options = _command_options()
+    for pattern, option, absent in _SHELL_OPTIONS:
+        flag = option.split()[0]
+
+        def say(m, option=option, flag=flag, absent=absent):
+            v = m.group(1) if m.groups() else ""
+            if flag in options.get(command, ()):
+                return option.format(v=v)
+            if absent is not None:
+                return absent.format(v=v)
+            other = next(c for c, flags in options.items() if flag in flags)
+            return f"'lagolib {other} {option.format(v=v)}'"
+
+        text = re.sub(pattern, say, text)
+    for pattern, replacement in _SHELL_PHRASES:
+        text = re.sub(pattern, replacement, text)
+    return text
+
+
 # ----------------------------------------------------------------------------- main
-def _show_warning(message, category, filename, lineno, file=None, line=None):
-    print(f"lagolib: warning: {message}", file=sys.stderr)
+def _warning_printer(command):
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"lagolib: warning: {_for_shell(str(message), command)}", file=sys.stderr)
+
+    return show
+
+
+def _delegate(command, argv):
+    """Run another module's ``main(argv)`` (``lagolib book``): an argparse usage error of it
+    becomes one line, as lagolib's own are (no usage block, no second line)."""
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err):
+            return COMMANDS[command](argv)
+    except SystemExit as exc:
+        text = err.getvalue()
+        if exc.code != 2 or ": error: " not in text:
+            raise
+        err = io.StringIO()  # the usage block is not replayed: one line says it all
+        message = text.strip().splitlines()[-1].split(": error: ", 1)[1]
+        choices = re.search(r"\{([\w,-]+)\}", text)
+        if choices and not [a for a in argv if not a.startswith("-")]:
+            message = f"a subcommand is required: {', '.join(choices[1].split(','))}"
+        raise _UsageError(f"{command}: {message}") from None
+    finally:
+        sys.stderr.write(_for_shell(err.getvalue(), command))  # what it wrote, for the shell
 
 
 def _one_line(exc):
@@ -1096,7 +1287,7 @@ def _dispatch(argv):
     while rest and rest[0] == "--debug":
         rest.pop(0)
     if rest and rest[0] in COMMANDS:
-        return COMMANDS[rest[0]](rest[1:])
+        return _delegate(rest[0], rest[1:])
     parser = _parser()
     args = parser.parse_args(argv)
     if args.command is None:
@@ -1108,13 +1299,14 @@ def main(argv=None) -> int:
     """Run ``lagolib`` with ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
     argv = sys.argv[1:] if argv is None else [os.fspath(a) for a in argv]
     debug = "--debug" in argv
+    command = next((a for a in argv if not a.startswith("-")), None)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             # numpy's overflow/invalid-value warnings: a failure they announce is reported as an
             # error (non-finite poses, lagolib's own checks), one line instead of several
             warnings.simplefilter("ignore", RuntimeWarning)
-            warnings.showwarning = _show_warning
+            warnings.showwarning = _warning_printer(command)
             return _dispatch(argv)
     except SystemExit as exc:  # --help, and the book's argparse
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
@@ -1124,12 +1316,12 @@ def main(argv=None) -> int:
     except _UsageError as exc:
         if debug:
             traceback.print_exc()
-        command = next((a for a in argv if not a.startswith("-")), None)
-        hint = (
-            f"lagolib {command} --help" if command in ("info", "solve", "certify", "plot") else None
+        known = ("info", "solve", "certify", "plot", "datasets", *COMMANDS)
+        hint = f"lagolib {command} --help" if command in known else "lagolib --help"
+        print(
+            f"lagolib: error: {_for_shell(_one_line(exc), command)} (see '{hint}')",
+            file=sys.stderr,
         )
-        hint = hint or "lagolib --help"
-        print(f"lagolib: error: {_one_line(exc)} (see '{hint}')", file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. 'lagolib datasets | head -1'
         with contextlib.suppress(OSError, ValueError, AttributeError):
@@ -1140,7 +1332,7 @@ def main(argv=None) -> int:
             traceback.print_exc()
         usage = isinstance(exc, OptionError | OptionTypeError)
         known = isinstance(exc, LagolibError | OSError)
-        text = _one_line(exc)
+        text = _for_shell(_one_line(exc), command)
         if not known:
             text = (
                 f"internal error: {type(exc).__name__}: {text} (rerun with --debug for the "

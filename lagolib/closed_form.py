@@ -41,9 +41,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from . import se2
-from .checks import check_choice, check_int, check_real
+from .checks import check_bool, check_choice, check_int, check_real
 from .errors import ConvergenceError, GraphError, OptionError, OptionTypeError
-from .graph import PoseGraph, _numeric, as_graph_poses, vertex_rows
+from .graph import PoseGraph, _numeric, as_graph_poses, check_graph, vertex_row
 from .lago import lago
 from .linalg import SparseCholesky, solve_spd
 
@@ -280,8 +280,7 @@ def network(graph):
     >>> net.n, net.e, net.n_L
     (159, 279, 120)
     """
-    if not isinstance(graph, PoseGraph):
-        raise OptionTypeError(f"network needs a PoseGraph; got {type(graph).__name__}")
+    check_graph(graph, "network")
     if graph.n < 2:
         raise GraphError("the closed form needs at least two poses (p_0 and one more)")
     rank = graph.order  # node index of every graph row
@@ -345,7 +344,9 @@ def network(graph):
 # ------------------------------------------------------------------------------ the sin/cos χ²
 def sincos_poses(poses):
     """``[x, y, θ]`` → ``[x, y, cos θ, sin θ]`` (Lodi Rizzini eq. 1), shape (..., 4)."""
-    p = np.asarray(poses, dtype=float)
+    p = _numeric(poses, "sincos_poses: poses", float)
+    if p.ndim == 0 or p.shape[-1] != 3:
+        raise OptionError(f"sincos_poses: poses must have shape (..., 3); got {p.shape}")
     return np.concatenate([p[..., :2], np.cos(p[..., 2:3]), np.sin(p[..., 2:3])], axis=-1)
 
 
@@ -354,15 +355,41 @@ def sincos_residuals(graph, poses=None):
 
     ``f_ij = [R_i^T (t_j − t_i); c_j c_i + s_j s_i; s_j c_i − c_j s_i]`` and
     ``δ̂_ij = [x̂, ŷ, cos θ̂, sin θ̂]`` of the edge's measurement.
+
+    Never NaN: where ``t_j − t_i`` overflows float64 (positions near ±1e308 on opposite sides)
+    the row is computed again with its translations scaled by a power of two, as
+    :func:`lagolib.graph.edge_errors` does, and a component beyond float64 is ``±inf``.
     """
-    p = sincos_poses(as_graph_poses(graph, poses))
-    pi, pj = p[graph.edges[:, 0]], p[graph.edges[:, 1]]
+    return _sincos_residuals(graph, poses, "sincos_residuals")
+
+
+def _sincos_residuals(graph, poses, where):
+    check_graph(graph, where)
+    p = as_graph_poses(graph, poses)
+    a, b, z = p[graph.edges[:, 0]], p[graph.edges[:, 1]], graph.measurements
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is redone below
+        e = _sincos_errors(a, b, z)
+    if not np.isfinite(e).all():  # rare: scale the translations of those rows (exact)
+        bad = ~np.all(np.isfinite(e), axis=1)
+        a, b, z = a[bad], b[bad], z[bad]
+        big = np.max(np.abs(np.concatenate([a[:, :2], b[:, :2], z[:, :2]], axis=1)), axis=1)
+        k = np.frexp(big)[1][:, None]
+        scaled = [np.column_stack([np.ldexp(q[:, :2], -k), q[:, 2]]) for q in (a, b, z)]
+        es = _sincos_errors(*scaled)
+        with np.errstate(over="ignore"):
+            es[:, :2] = np.ldexp(es[:, :2], k)  # ±inf beyond float64, never NaN
+        e[bad] = es
+    return e
+
+
+def _sincos_errors(a, b, z):
+    """Eq. (2)–(3) for poses ``a``, ``b`` (``(x, y, θ)``, shape (m, 3)) and measurements ``z``."""
+    pi, pj = sincos_poses(a), sincos_poses(b)
     ci, si, cj, sj = pi[:, 2], pi[:, 3], pj[:, 2], pj[:, 3]
     dx, dy = pj[:, 0] - pi[:, 0], pj[:, 1] - pi[:, 1]
     f = np.column_stack(
         [dx * ci + dy * si, -dx * si + dy * ci, cj * ci + sj * si, sj * ci - cj * si]
     )  # eq. (2)
-    z = graph.measurements
     return f - np.column_stack([z[:, :2], np.cos(z[:, 2]), np.sin(z[:, 2])])  # eq. (3)
 
 
@@ -373,9 +400,11 @@ def sincos_chi2(graph, poses=None, *, per_edge=False):
     -------
     float, or ndarray of shape (m,) with ``per_edge=True``
     """
-    e = sincos_residuals(graph, poses)
-    per = np.einsum("ka,ka->k", e, e)
-    return per if per_edge else float(per.sum())
+    per_edge = check_bool(per_edge, "per_edge", "sincos_chi2")
+    e = _sincos_residuals(graph, poses, "sincos_chi2")
+    with np.errstate(over="ignore"):  # a term beyond float64 is inf (a sum of squares: never NaN)
+        per = np.einsum("ka,ka->k", e, e)
+        return per if per_edge else float(per.sum())
 
 
 def sincos_jacobians(p_i, p_j):
@@ -390,7 +419,13 @@ def sincos_jacobians(p_i, p_j):
     -------
     J_i, J_j : ndarray, shape (m, 4, 4)
     """
-    p_i, p_j = np.atleast_2d(p_i), np.atleast_2d(p_j)
+    p_i = np.atleast_2d(_numeric(p_i, "sincos_jacobians: p_i", float))
+    p_j = np.atleast_2d(_numeric(p_j, "sincos_jacobians: p_j", float))
+    if p_i.ndim != 2 or p_i.shape[1] != 4 or p_j.shape != p_i.shape:
+        raise OptionError(
+            "sincos_jacobians: p_i and p_j must be 4-parameter poses [x, y, c, s] of the same "
+            f"shape (m, 4); got {p_i.shape} and {p_j.shape}"
+        )
     x_i, y_i, c_i, s_i = p_i.T
     x_j, y_j, c_j, s_j = p_j.T
     dx, dy = x_j - x_i, y_j - y_i
@@ -416,17 +451,36 @@ def sincos_jacobians(p_i, p_j):
     return J_i, J_j
 
 
-def _theta_jacobians(graph, poses):
+def _theta_jacobians(graph, poses, where):
     """``e`` and its Jacobians in ``(x, y, θ)``: eq. (12)–(13) times ``∂p/∂(x, y, θ)``."""
     p = sincos_poses(poses)
     pi, pj = p[graph.edges[:, 0]], p[graph.edges[:, 1]]
-    J_i, J_j = sincos_jacobians(pi, pj)
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused below
+        J_i, J_j = sincos_jacobians(pi, pj)
 
     def chain(J, q):  # ∂[x, y, c, s]/∂[x, y, θ] = [[1, 0, 0], [0, 1, 0], [0, 0, −s], [0, 0, c]]
         d_theta = -q[:, 3, None] * J[..., 2] + q[:, 2, None] * J[..., 3]
         return np.concatenate([J[..., :2], d_theta[..., None]], axis=-1)
 
-    return sincos_residuals(graph, poses), chain(J_i, pi), chain(J_j, pj)
+    e = _sincos_residuals(graph, poses, where)
+    with np.errstate(over="ignore", invalid="ignore"):
+        J_i, J_j = chain(J_i, pi), chain(J_j, pj)
+    if not (np.isfinite(e).all() and np.isfinite(J_i).all()):  # J_j holds only sines and cosines
+        _refuse_overflow(graph, poses, e, J_i, where)
+    return e, J_i, J_j
+
+
+def _refuse_overflow(graph, poses, e, J_i, where):
+    """GraphError naming the first edge whose residual or Jacobian is beyond float64."""
+    bad = ~(np.all(np.isfinite(e), axis=1) & np.all(np.isfinite(J_i), axis=(1, 2)))
+    k = int(np.flatnonzero(bad)[0])
+    i, j = graph.edges[k]
+    raise GraphError(
+        f"{where}: at these poses {graph._edge_name(k)} has a residual or a Jacobian beyond "
+        f"float64 (poses {poses[i].tolist()} and {poses[j].tolist()}): positions ±1.8e308 "
+        "apart; give poses closer together (sincos_chi2 evaluates such poses: inf)",
+        edge=k,
+    )
 
 
 def sincos_gradient(graph, poses=None):
@@ -436,11 +490,22 @@ def sincos_gradient(graph, poses=None):
     constraint ``c² + s² = 1`` holds by construction, so a stationary point of eq. (7) is a zero
     of this gradient.
     """
+    where = "sincos_gradient"
+    check_graph(graph, where)
     poses = as_graph_poses(graph, poses)
-    e, Ji, Jj = _theta_jacobians(graph, poses)
+    e, Ji, Jj = _theta_jacobians(graph, poses, where)
     g = np.zeros((graph.n, 3))
-    np.add.at(g, graph.edges[:, 0], 2 * np.einsum("kab,ka->kb", Ji, e))
-    np.add.at(g, graph.edges[:, 1], 2 * np.einsum("kab,ka->kb", Jj, e))
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused below
+        np.add.at(g, graph.edges[:, 0], 2 * np.einsum("kab,ka->kb", Ji, e))
+        np.add.at(g, graph.edges[:, 1], 2 * np.einsum("kab,ka->kb", Jj, e))
+    bad = np.flatnonzero(~np.all(np.isfinite(g), axis=1))
+    if bad.size:
+        v = int(bad[0])
+        raise GraphError(
+            f"{where}: the gradient of vertex id {graph.ids[v]} overflows float64 (residuals times "
+            "distances beyond 1.8e308); at these poses only sincos_chi2 is defined (inf)",
+            vertex=v,
+        )
     return g
 
 
@@ -489,16 +554,17 @@ def optimize_sincos(graph, initial=None, *, fixed=None, max_iterations=100, tol=
     SincosOptimum
     """
     where = "optimize_sincos"
-    if not isinstance(graph, PoseGraph):
-        raise OptionTypeError(f"{where}: graph must be a PoseGraph; got {type(graph).__name__}")
+    check_graph(graph, where)
     max_iterations = check_int(max_iterations, "max_iterations", where, minimum=0)
     tol = check_real(tol, "tol", where, minimum=0.0)
     x = as_graph_poses(graph, initial, "initial")
     n = graph.n
+    if n == 0:
+        raise GraphError(f"{where}: the graph has no vertices")
     if fixed is None:
         fixed_row = int(np.argmin(graph.ids))
     else:
-        fixed_row = int(vertex_rows(graph, [fixed], f"{where}: fixed")[0])
+        fixed_row = vertex_row(graph, fixed, f"{where}: fixed")
     free = np.delete(np.arange(n), fixed_row)
     col_of = np.full(n, -1)
     col_of[free] = np.arange(free.size)
@@ -508,7 +574,7 @@ def optimize_sincos(graph, initial=None, *, fixed=None, max_iterations=100, tol=
     history, converged, iterations = [chi], False, 0
     while iterations < max_iterations:
         iterations += 1
-        e, Ji, Jj = _theta_jacobians(graph, x)
+        e, Ji, Jj = _theta_jacobians(graph, x, where)
         data, r, c = [], [], []
         for J, end in ((Ji, graph.edges[:, 0]), (Jj, graph.edges[:, 1])):
             keep = col_of[end] >= 0
@@ -521,7 +587,14 @@ def optimize_sincos(graph, initial=None, *, fixed=None, max_iterations=100, tol=
             (np.concatenate(data), (np.concatenate(r), np.concatenate(c))),
             shape=(4 * m, 3 * free.size),
         )
-        H, b = (J.T @ J).tocsc(), J.T @ e.ravel()
+        with np.errstate(over="ignore", invalid="ignore"):
+            H, b = (J.T @ J).tocsc(), J.T @ e.ravel()
+        if not (np.isfinite(H.data).all() and np.isfinite(b).all()):
+            raise GraphError(
+                f"{where}: the normal equations overflow float64 at iteration {iterations} (the "
+                "poses are too far apart: squared distances beyond 1.8e308); give poses closer "
+                "together"
+            )
         dx = solve_spd(H, -b).reshape(-1, 3)
         step = 1.0
         for _ in range(30):
@@ -566,6 +639,8 @@ def positions_from_orientations(graph, theta, origin=(0.0, 0.0)):
     ndarray, shape (graph.n, 2)
     """
     where = "positions_from_orientations"
+    if not isinstance(graph, ClosedFormNetwork):
+        check_graph(graph, where)
     net = graph if isinstance(graph, ClosedFormNetwork) else network(graph)
     theta = _numeric(theta, f"{where}: theta", float)
     if theta.shape != (net.graph.n,):
@@ -884,6 +959,7 @@ def closed_form(graph, initial="lago", *, tol=1e-10, max_iterations=50, if_worse
     (True, True)
     """
     where = "closed_form"
+    check_graph(graph, where)
     net = network(graph)
     tol = check_real(tol, "tol", where, minimum=0.0)
     max_iterations = check_int(max_iterations, "max_iterations", where, minimum=0)

@@ -8,13 +8,19 @@ lagolib.  :func:`path` finds one of them
 1. in the folder named by the environment variable ``LAGOLIB_DATA`` (a mirror laid out as the
    ``relpath`` column of :func:`info`), if that variable is set — and then *only* there: a missing
    file is an error, never a silent download; or
-2. in lagolib's download cache (``LAGOLIB_CACHE``, default the user cache folder), fetched with
-   `pooch <https://www.fatiando.org/pooch/>`_ from the public repository it comes from, pinned to
-   a commit (never when ``LAGOLIB_OFFLINE=1``; a download waits at most ``LAGOLIB_TIMEOUT``
-   seconds, default 20, for the network).
+2. in lagolib's download cache (``LAGOLIB_CACHE``, default the user cache folder; created on the
+   first download), fetched with `pooch <https://www.fatiando.org/pooch/>`_'s HTTP downloader
+   from the public repository it comes from, pinned to a commit (never when ``LAGOLIB_OFFLINE``
+   is ``1``; a download waits at most ``LAGOLIB_TIMEOUT`` seconds, default 20, for the network).
+   A download goes to a temporary file in the cache folder — on Linux an anonymous one, which a
+   process killed half-way leaves no trace of — and is moved into place only after its checksum
+   matched; it prints nothing (no progress or log lines).
 
 Either way the file's SHA-256 must equal the registry's, or :class:`~lagolib.errors.DatasetError`
-is raised.
+is raised (for a cached file: "the cached file ... is corrupt").  A misconfiguration is named
+as such: ``LAGOLIB_DATA`` naming a file, a missing folder or ``~user`` of an unknown user,
+``LAGOLIB_CACHE`` naming a file, and ``LAGOLIB_OFFLINE``/``LAGOLIB_TIMEOUT`` values that mean
+nothing (an :class:`~lagolib.errors.OptionError`).
 
 *Shipped examples* (``square_loop``, ``manhattan200``, ``grid100``) are small simulated graphs in
 the repository's ``data/`` folder, made by ``data/make_data.py``; :func:`example` loads one with
@@ -32,14 +38,20 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import hashlib
+import math
 import os
+import secrets
 from dataclasses import dataclass
 from pathlib import Path
+from urllib.parse import urlsplit
 
 import numpy as np
 
-from .errors import DatasetError
+from .checks import check_bool
+from .errors import DatasetError, OptionError, OptionTypeError
 from .graph import PoseGraph
 from .io import read, read_poses
 
@@ -283,6 +295,17 @@ def names():
     return sorted(_REGISTRY)
 
 
+def _name(name, where, what="name"):
+    """``name`` if it is a str; else an :class:`~lagolib.errors.OptionTypeError` naming ``where``."""
+    if not isinstance(name, str):
+        example = "'square_loop'" if what == "fallback" or where == "example" else "'intel'"
+        raise OptionTypeError(
+            f"{where}: {what} must be a str, one name such as {example}; got {name!r} "
+            f"({type(name).__name__})"
+        )
+    return name
+
+
 def info(name):
     """The :class:`Dataset` record of ``name``.
 
@@ -290,7 +313,10 @@ def info(name):
     ------
     DatasetError
         If ``name`` is not registered (the message lists the names that are).
+    OptionTypeError
+        If ``name`` is not a str.
     """
+    _name(name, "info")
     try:
         return _REGISTRY[name]
     except KeyError:
@@ -308,12 +334,29 @@ def _sha256(p):
     return h.hexdigest()
 
 
-def _check(d, p):
+def _unavailable(message, reason, advice=None):
+    """A DatasetError for a file that cannot be had now, with attributes ``reason`` (why, in a
+    few words) and ``advice`` (how to get it), for :func:`load_or_example`'s note and the CLI."""
+    exc = DatasetError(message)
+    exc.reason = reason
+    exc.advice = advice or "run lagolib.datasets.path({name!r}) once online"
+    return exc
+
+
+def _check(d, p, cached=False):
     st = p.stat()
     key = (str(p), st.st_size, st.st_mtime_ns)
     if _verified.get(key) != d.sha256:
         digest = _sha256(p)
         if digest != d.sha256:
+            if cached:
+                raise _unavailable(
+                    f"the cached file {p} of dataset {d.name!r} is corrupt: its SHA-256 {digest} "
+                    f"does not match the registry's {d.sha256}; delete it, and "
+                    f"lagolib.datasets.path({d.name!r}) downloads it again",
+                    f"the cached file {p} is corrupt (its SHA-256 differs from the registry's)",
+                    "delete it and run lagolib.datasets.path({name!r}) once online",
+                )
             raise DatasetError(
                 f"{p}: SHA-256 {digest} does not match the registry's {d.sha256} for dataset "
                 f"{d.name!r}; the file is corrupt or a different version — replace it with the "
@@ -323,17 +366,58 @@ def _check(d, p):
     return p
 
 
+def _folder_variable(variable):
+    """The folder named by the environment variable ``variable`` (``~`` expanded), or None when
+    it is unset or empty; a DatasetError when it names a file or a user that does not exist."""
+    value = os.environ.get(variable, "")
+    if not value:
+        return None
+    try:
+        folder = Path(value).expanduser()
+    except RuntimeError:  # '~someone' of a user that does not exist, or no home folder
+        user = value.split("/", 1)[0].split(os.sep, 1)[0]
+        raise DatasetError(
+            f"{variable}={value}: cannot expand {user!r} (no such user, or no home folder); "
+            "give the folder's full path"
+        ) from None
+    if folder.exists() and not folder.is_dir():
+        raise DatasetError(
+            f"{variable}={value} is a file, not a folder; set {variable} to a folder, or unset it"
+        )
+    return folder
+
+
 def mirror():
-    """The folder named by ``LAGOLIB_DATA`` as a Path, or None when the variable is unset or empty."""
-    value = os.environ.get("LAGOLIB_DATA", "")
-    return Path(value).expanduser() if value else None
+    """The folder named by ``LAGOLIB_DATA`` as a Path, or None when the variable is unset or empty.
+
+    Raises
+    ------
+    DatasetError
+        ``LAGOLIB_DATA`` names a file, a folder that does not exist, or ``~user`` of an unknown
+        user.
+    """
+    folder = _folder_variable("LAGOLIB_DATA")
+    if folder is not None and not folder.is_dir():
+        raise DatasetError(
+            f"LAGOLIB_DATA={os.environ['LAGOLIB_DATA']}: no such folder; set LAGOLIB_DATA to the "
+            "folder that mirrors the benchmarks, or unset it to use the download cache"
+        )
+    return folder
 
 
 def cache_dir():
-    """Where downloads are kept: ``LAGOLIB_CACHE`` if set, else the user cache folder of lagolib."""
-    value = os.environ.get("LAGOLIB_CACHE", "")
-    if value:
-        return Path(value).expanduser()
+    """Where downloads are kept: ``LAGOLIB_CACHE`` if set, else the user cache folder of lagolib.
+
+    The folder is created by the first download.
+
+    Raises
+    ------
+    DatasetError
+        ``LAGOLIB_CACHE`` names a file, or ``~user`` of an unknown user.
+    """
+    folder = _folder_variable("LAGOLIB_CACHE")
+    if folder is not None:
+        return folder
     import pooch
 
     return Path(pooch.os_cache("lagolib"))
@@ -352,7 +436,8 @@ def path(name, *, download=True):
         A name from :func:`names`.
     download : bool
         When ``LAGOLIB_DATA`` is unset and the file is not cached yet, download it (default);
-        with ``False``, raise instead.
+        with ``False``, raise instead.  ``LAGOLIB_OFFLINE=1`` forbids downloads whatever this
+        says.
 
     Returns
     -------
@@ -361,10 +446,18 @@ def path(name, *, download=True):
     Raises
     ------
     DatasetError
-        Unknown name; ``LAGOLIB_DATA`` is set but lacks the file; the file's checksum differs
-        from the registry's; or the file is not cached and ``download`` is False.
+        Unknown name; ``LAGOLIB_DATA`` is set but lacks the file; ``LAGOLIB_DATA`` or
+        ``LAGOLIB_CACHE`` names a file or (``LAGOLIB_DATA``) a missing folder; the file's
+        checksum differs from the registry's (a mirrored, cached or downloaded file); the file
+        is not cached and downloads are off (``download=False`` or ``LAGOLIB_OFFLINE``); the
+        download failed (the message says why in one sentence).
+    OptionTypeError
+        ``name`` is not a str or ``download`` is not a bool.
+    OptionError
+        ``LAGOLIB_OFFLINE`` or ``LAGOLIB_TIMEOUT`` holds a value that means nothing.
     """
     d = info(name)
+    download = check_bool(download, "download", "path")
     root = mirror()
     if root is not None:
         p = root / d.relpath
@@ -374,56 +467,260 @@ def path(name, *, download=True):
                 f"from {d.url} there, or unset LAGOLIB_DATA to download it into the cache"
             )
         return _check(d, p)
-    p = cache_dir() / _cached_name(d)
+    folder = cache_dir()
+    p = folder / _cached_name(d)
     if p.is_file():
-        return _check(d, p)
-    if not download or _offline():
-        raise DatasetError(
-            f"dataset {name!r} is not in the cache {cache_dir()} and download=False; call "
-            f"lagolib.datasets.path({name!r}) once with network access, or set LAGOLIB_DATA to a mirror"
+        return _check(d, p, cached=True)
+    offline = _offline()
+    if offline or not download:
+        missing = "" if folder.is_dir() else f" (the folder {folder} does not exist yet)"
+        why = f"LAGOLIB_OFFLINE={os.environ['LAGOLIB_OFFLINE']}" if offline else "download=False"
+        unset = "unset LAGOLIB_OFFLINE and " if offline else ""
+        raise _unavailable(
+            f"dataset {name!r} is not in the cache {folder}{missing}, and downloads are off "
+            f"({why}); {unset}call lagolib.datasets.path({name!r}) once with network access, or "
+            "set LAGOLIB_DATA to a mirror",
+            f"it is not in the cache, and downloads are off ({why})",
+            unset + "run lagolib.datasets.path({name!r}) once online",
         )
-    import pooch
-
-    try:
-        fetched = pooch.retrieve(
-            d.url,
-            known_hash=f"sha256:{d.sha256}",
-            fname=_cached_name(d),
-            path=cache_dir(),
-            progressbar=False,
-            downloader=pooch.HTTPDownloader(timeout=_download_timeout(), progressbar=False),
-        )
-    except ValueError as exc:  # pooch's checksum mismatch
-        raise DatasetError(
-            f"download of dataset {name!r} from {d.url} failed its checksum: {exc}"
-        ) from exc
-    except Exception as exc:
-        raise DatasetError(
-            f"could not download dataset {name!r} from {d.url}: {exc}; check the network, or set "
-            "LAGOLIB_DATA to a folder that mirrors the files"
-        ) from exc
-    return Path(fetched)
+    return _download(d, folder, p)
 
 
 def available(name):
-    """True when :func:`path` would return without touching the network."""
+    """True when :func:`path` would return without touching the network.
+
+    Raises
+    ------
+    DatasetError
+        As :func:`path` does for an unknown name or an unusable ``LAGOLIB_DATA``/``LAGOLIB_CACHE``.
+    """
     d = info(name)
     root = mirror()
     p = (root / d.relpath) if root is not None else cache_dir() / _cached_name(d)
     return p.is_file()
 
 
+_OFF = ("", "0", "false", "no", "off")
+_ON = ("1", "true", "yes", "on")
+
+
 def _offline():
-    """True when ``LAGOLIB_OFFLINE`` is set to a non-empty value other than ``0``: never download."""
-    return os.environ.get("LAGOLIB_OFFLINE", "") not in ("", "0")
+    """True when ``LAGOLIB_OFFLINE`` says never download (``1``, ``true``, ``yes``, ``on``).
+
+    Unset, empty, ``0``, ``false``, ``no`` and ``off`` allow downloads; anything else is an
+    :class:`~lagolib.errors.OptionError` (a typo must not silently allow or forbid downloads).
+    """
+    value = os.environ.get("LAGOLIB_OFFLINE", "").strip().lower()
+    if value in _OFF:
+        return False
+    if value in _ON:
+        return True
+    raise OptionError(
+        f"LAGOLIB_OFFLINE={os.environ['LAGOLIB_OFFLINE']!r} means neither on nor off; set it to 1 "
+        "(never download) or 0 (download when needed), or unset it"
+    )
 
 
 def _download_timeout():
     """Seconds a download may wait for the network (``LAGOLIB_TIMEOUT``, default 20)."""
-    try:
-        return max(1.0, float(os.environ.get("LAGOLIB_TIMEOUT", "20")))
-    except ValueError:
+    value = os.environ.get("LAGOLIB_TIMEOUT", "").strip()
+    if not value:
         return 20.0
+    try:
+        seconds = float(value)
+    except ValueError:
+        seconds = math.nan
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise OptionError(
+            f"LAGOLIB_TIMEOUT={os.environ['LAGOLIB_TIMEOUT']!r} must be a positive number of "
+            "seconds (default 20)"
+        )
+    return seconds
+
+
+# ---------------------------------------------------------------------- downloads
+class _Hashing:
+    """The file object a downloader writes into: bytes go to ``fd`` and into a SHA-256."""
+
+    def __init__(self, fd):
+        self.fd, self.sha, self.size = fd, hashlib.sha256(), 0
+
+    def write(self, data):
+        view = memoryview(data)
+        while view:
+            view = view[os.write(self.fd, view) :]
+        self.sha.update(data)
+        self.size += len(data)
+        return len(data)
+
+    def flush(self):
+        pass
+
+
+def _stale_parts(folder, fname):
+    """Remove ``.FNAME.PID.*.part`` files of processes that no longer run (killed downloads)."""
+    if os.name != "posix":  # pragma: no cover (os.kill(pid, 0) would end the process there)
+        return
+    for part in folder.glob(f".{fname}.*.part"):
+        fields = part.name[len(fname) + 2 :].split(".")
+        with contextlib.suppress(ValueError, OSError):
+            try:
+                os.kill(int(fields[0]), 0)
+            except ProcessLookupError:
+                part.unlink()
+
+
+def _part_name(folder, fname):
+    return folder / f".{fname}.{os.getpid()}.{secrets.token_hex(4)}.part"
+
+
+@contextlib.contextmanager
+def _partial(folder, fname):
+    """``(fd, name)`` of a fresh file in ``folder`` that a killed process leaves no trace of.
+
+    On Linux the file is anonymous (``O_TMPFILE``): it has no name until :func:`_publish` links
+    it into place, and the kernel frees it when the process dies, however it dies.  Elsewhere it
+    is ``.FNAME.PID.XXXXXXXX.part``, removed on any exception, and by the next download after a
+    process killed outright (:func:`_stale_parts`).  ``name`` is None for an anonymous file.
+    """
+    fd = name = None
+    flag = getattr(os, "O_TMPFILE", 0)
+    if flag and os.path.isdir("/proc/self/fd"):
+        with contextlib.suppress(OSError):  # a file system without O_TMPFILE: the named file
+            fd = os.open(folder, flag | os.O_RDWR, 0o644)
+    if fd is None:
+        name = _part_name(folder, fname)
+        fd = os.open(name, os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o644)
+    try:
+        yield fd, name
+    finally:
+        os.close(fd)
+        if name is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(name)
+
+
+def _publish(fd, name, target):
+    """Move the finished download into place: atomically, never a half-written ``target``."""
+    os.fsync(fd)
+    if name is None:
+        # linkat(AT_SYMLINK_FOLLOW) of /proc/self/fd/N names the anonymous file; the dir fds make
+        # Python call linkat rather than link, which would not follow the /proc link
+        folder = os.open(target.parent, os.O_RDONLY)
+        try:
+            link = functools.partial(
+                os.link, f"/proc/self/fd/{fd}", src_dir_fd=folder, dst_dir_fd=folder
+            )
+            try:
+                link(target.name)  # atomic: the complete file appears under its name at once
+                return
+            except FileExistsError:  # another process finished first: replace its copy
+                name = _part_name(target.parent, target.name)
+                link(name.name)
+            except OSError:  # linkat refused (a restricted /proc): copy into a named file
+                name = _part_name(target.parent, target.name)
+                try:
+                    with open(name, "xb") as out:
+                        os.lseek(fd, 0, os.SEEK_SET)
+                        for block in iter(lambda: os.read(fd, 1 << 20), b""):
+                            out.write(block)
+                except BaseException:
+                    with contextlib.suppress(FileNotFoundError):
+                        os.unlink(name)
+                    raise
+        finally:
+            os.close(folder)
+    try:
+        os.replace(name, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(name)
+        raise
+
+
+def _why_failed(exc, url):
+    """One short sentence for a failed download (not urllib3's retry report)."""
+    import requests
+
+    text, e = "", exc
+    for _ in range(20):  # the whole chain: requests wraps urllib3, which wraps the socket error
+        if e is None:
+            break
+        text += f" {type(e).__name__} {e}"
+        e = e.__cause__ or e.__context__
+    host = urlsplit(url).hostname or url
+    seconds = f"{_download_timeout():g} s (LAGOLIB_TIMEOUT)"
+    if isinstance(exc, requests.HTTPError) and exc.response is not None:
+        r = exc.response
+        return f"{host} answered HTTP {r.status_code} {r.reason or ''}".rstrip()
+    if "NameResolutionError" in text or "Failed to resolve" in text or "gaierror" in text:
+        return f"cannot look up the host {host} (no network, or no DNS)"
+    if isinstance(exc, requests.ConnectTimeout):
+        return f"{host} did not answer within {seconds}"
+    if isinstance(exc, requests.Timeout):
+        return f"{host} sent nothing for {seconds}"
+    if "ConnectionRefused" in text or "Connection refused" in text:
+        return f"{host} refused the connection"
+    if isinstance(exc, requests.exceptions.SSLError):
+        return f"the TLS connection to {host} failed (a proxy, or the system's certificates?)"
+    if "IncompleteRead" in text or "Connection broken" in text:
+        return f"the connection to {host} broke off before the whole file arrived"
+    if isinstance(exc, requests.ConnectionError):
+        return f"no connection to {host}"
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror + (f": {exc.filename}" if exc.filename else "")
+    return f"{type(exc).__name__}: {' '.join(str(exc).split())[:120]}"
+
+
+def _download(d, folder, target):
+    """Download ``d`` into ``target`` (in ``folder``, created if needed), checksum verified."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+        if os.environ.get("LAGOLIB_CACHE"):  # the user's setting: theirs to fix, never a fallback
+            raise DatasetError(
+                f"LAGOLIB_CACHE={folder}: cannot create the folder ({why}); set LAGOLIB_CACHE to "
+                "a folder you can write, or unset it"
+            ) from None
+        raise _unavailable(
+            f"the cache folder {folder} cannot be created ({why}); set LAGOLIB_CACHE to a "
+            "folder you can write, or LAGOLIB_DATA to a mirror",
+            f"the cache folder {folder} cannot be created ({why})",
+        ) from None
+    import pooch
+
+    downloader = pooch.HTTPDownloader(timeout=_download_timeout(), progressbar=False)
+    _stale_parts(folder, target.name)
+    try:
+        with _partial(folder, target.name) as (fd, name):
+            out = _Hashing(fd)
+            downloader(d.url, out, None)
+            digest = out.sha.hexdigest()
+            if digest != d.sha256:
+                raise _unavailable(
+                    f"download of dataset {d.name!r} from {d.url} failed its checksum: SHA-256 "
+                    f"{digest} of {out.size} bytes, the registry's {d.sha256}; nothing was "
+                    "kept in the cache (the server may hold a different version)",
+                    "the downloaded file failed its checksum",
+                )
+            _publish(fd, name, target)
+    except DatasetError:
+        raise
+    except Exception as exc:
+        why = _why_failed(exc, d.url)
+        raise _unavailable(
+            f"could not download dataset {d.name!r} from {d.url}: {why}; check the network, or "
+            "set LAGOLIB_DATA to a folder that mirrors the files",
+            f"the download failed: {why}",
+        ) from exc
+    _verified[(str(target), *_stat_key(target))] = d.sha256
+    return target
+
+
+def _stat_key(p):
+    st = p.stat()
+    return st.st_size, st.st_mtime_ns
 
 
 def load(name, *, download=True):
@@ -470,8 +767,11 @@ def load_or_example(name, fallback, *, download=True, quiet=False):
 
     The chapters call this: the benchmark comes from ``LAGOLIB_DATA``, the cache, or (when
     ``download`` and the network is there) a checksummed download; when none works, the shipped
-    simulated graph ``fallback`` is used instead and the printed line says how to get the real
-    file.  A mirror that is set but broken is still an error (:func:`path`).
+    simulated graph ``fallback`` is used instead and the printed line says why — downloads off
+    (``LAGOLIB_OFFLINE`` or ``download=False``), the download's failure in one sentence, or a
+    corrupt cached file — and how to get the real file.  A mirror that is set but broken, and an
+    unusable ``LAGOLIB_DATA``/``LAGOLIB_CACHE``/``LAGOLIB_OFFLINE``, are still errors
+    (:func:`path`).  A download prints nothing but this line (no progress or log lines).
 
     Parameters
     ----------
@@ -488,28 +788,33 @@ def load_or_example(name, fallback, *, download=True, quiet=False):
     -------
     Loaded
     """
-    d = info(name)
+    where = "load_or_example"
+    d = info(_name(name, where))
+    _name(fallback, where, "fallback")
+    download = check_bool(download, "download", where)
+    quiet = check_bool(quiet, "quiet", where)
     if fallback not in _EXAMPLES:
         raise DatasetError(f"unknown example {fallback!r}; shipped: {', '.join(_EXAMPLES)}")
     if d.kind != "graph":
         raise DatasetError(f"dataset {name!r} holds {d.kind}, not a graph; use load({name!r})")
+    had = mirror() is not None or available(name)
     try:
         graph = load(name, download=download)
     except DatasetError as exc:
-        if mirror() is not None:  # a mirror that lacks or corrupts a file is the user's to fix
+        reason = getattr(exc, "reason", None)
+        if reason is None:  # a mirror that lacks or corrupts a file is the user's to fix
             raise
         ex = example(fallback)
-        reason = "no network" if download and not _offline() else "downloads are off"
         note = (
             f"Using the shipped simulated graph {fallback!r} ({ex.graph.n} poses, {ex.graph.m} "
-            f"edges) instead of {name!r} ({reason}). For the real file, run "
-            f"lagolib.datasets.path({name!r}) once online, or set LAGOLIB_DATA to a mirror."
+            f"edges) instead of {name!r}: {reason}. For the real file, "
+            f"{exc.advice.format(name=name)}, or set LAGOLIB_DATA to a mirror."
         )
-        del exc
         if not quiet:
             print(note)
         return Loaded(ex.graph, fallback, False, ex.truth, note)
-    note = f"Using the public benchmark {name!r} ({graph.n} poses, {graph.m} edges)."
+    got = "" if had else f"; downloaded from {d.url} into {cache_dir()}"
+    note = f"Using the public benchmark {name!r} ({graph.n} poses, {graph.m} edges{got})."
     if not quiet:
         print(note)
     return Loaded(graph, name, True, None, note)
@@ -570,7 +875,7 @@ def example(name):
     -------
     Example
     """
-    if name not in _EXAMPLES:
+    if _name(name, "example") not in _EXAMPLES:
         raise DatasetError(f"unknown example {name!r}; shipped: {', '.join(_EXAMPLES)}")
     folder = data_dir()
     graph = read(folder / f"{name}.g2o")

@@ -29,6 +29,8 @@ __all__ = [
     "DatasetError",
     "GaugeError",
     "NotPositiveDefiniteError",
+    "BackendWarning",
+    "ConditioningWarning",
     "ConvergenceError",
     "BackendError",
     "OptionError",
@@ -166,6 +168,21 @@ class OptionTypeError(LagolibError, TypeError):
 
 class LagolibWarning(UserWarning):
     """Base class of lagolib's warnings."""
+
+
+class BackendWarning(LagolibWarning):
+    """A fast sparse-solver backend's answer failed lagolib's check and was recomputed.
+
+    :class:`lagolib.linalg.SparseCholesky` checks every solve (its backward error); when MKL
+    PARDISO's factorization breaks down on a matrix that is positive definite, or its solution stays
+    inaccurate after iterative refinement, the system is solved again with qdldl and this warning
+    says so (once per factorization object).
+    """
+
+
+class ConditioningWarning(LagolibWarning):
+    """A result is limited by float64, not by the method: the matrix it comes from is so
+    ill-conditioned that only the leading digits can be trusted; the message says how many."""
 
 
 class SkippedLinesWarning(LagolibWarning):

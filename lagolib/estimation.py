@@ -87,7 +87,13 @@ def information_form(H, z, information):
     eta : ndarray, shape (N,)
         Information vector ``H Ω z``.
     """
-    where = "information_form"
+    H, z, W = _measurement_model(H, z, information, "information_form")
+    HW = H @ W
+    return sp.csc_matrix(HW @ H.T), HW @ z
+
+
+def _measurement_model(H, z, information, where):
+    """``H`` (sparse), ``z`` and ``Ω`` (sparse) checked: real, finite, matching shapes."""
     H = _real_array(H, "H", where)
     H = _check_finite(H if sp.issparse(H) else sp.csr_matrix(np.atleast_2d(H)), "H", where)
     z = _check_finite(_real_array(z, "z", where), "z", where)
@@ -95,9 +101,7 @@ def information_form(H, z, information):
         raise OptionError(
             f"{where}: z must have shape ({H.shape[1]},) to match H {H.shape}; got {z.shape}"
         )
-    W = _as_information(information, H.shape[1], where)
-    HW = H @ W
-    return sp.csc_matrix(HW @ H.T), HW @ z
+    return H, z, _as_information(information, H.shape[1], where)
 
 
 @dataclass(eq=False)
@@ -148,7 +152,7 @@ class BLUE:
         return 0.5 * (P + P.T)
 
 
-def blue(H, z, information, *, backend="auto", ordering=None):
+def blue(H, z, information, *, backend="auto", ordering=None, start=None, auto_rows=None):
     """Best linear unbiased estimator of ``x`` from ``z = H^T x + noise``.
 
     ``x̂ = (H Ω H^T)^-1 H Ω z``, ``P_x̂ = (H Ω H^T)^-1``, with ``Ω = P^-1`` the noise information
@@ -164,6 +168,15 @@ def blue(H, z, information, *, backend="auto", ordering=None):
         Sparse Cholesky backend.
     ordering : array_like of int, shape (N,), optional
         Fill-reducing ordering for PARDISO (:class:`lagolib.linalg.SparseCholesky`).
+    auto_rows : int or callable, optional
+        Rows that decide ``backend="auto"`` (:class:`lagolib.linalg.SparseCholesky`).
+    start : array_like, shape (N,), optional
+        A point near the estimate.  The normal equations are then solved for the correction,
+        ``x̂ = x0 + (H Ω H^T)^-1 H Ω (z - H^T x0)``: the same estimate in exact arithmetic, and far
+        more accurate when ``H Ω H^T`` is ill-conditioned and ``x0`` nearly explains ``z``.  LAGO
+        starts from its spanning tree's composition: on a 4 x 10^4-pose chain (condition number
+        about 5e17) the direct solve is wrong by 1e-3 to 1e-1 (it depends on the backend's
+        rounding), the correction form exact to rounding.
 
     Returns
     -------
@@ -187,9 +200,40 @@ def blue(H, z, information, *, backend="auto", ordering=None):
     (array([3.]), array([[0.33333333]]))
     """
     backend = check_choice(backend, "backend", "blue", ("auto",) + BACKENDS)
-    info, eta = information_form(H, z, information)
-    factor = SparseCholesky(info, backend, ordering=ordering)
-    return BLUE(factor.solve(eta), info, factor)
+    H, z, W = _measurement_model(H, z, information, "blue")
+    x = np.zeros(H.shape[0])
+    if start is not None:
+        x = _check_finite(_real_array(start, "start", "blue"), "start", "blue")
+        if x.shape != (H.shape[0],):
+            raise OptionError(f"blue: start must have shape ({H.shape[0]},); got {x.shape}")
+    HW = H @ W
+    info = sp.csc_matrix(HW @ H.T)
+    factor = SparseCholesky(info, backend, ordering=ordering, auto_rows=auto_rows)
+    return BLUE(_corrections(factor, H, HW, z, x), info, factor)
+
+
+#: :func:`blue` refines its estimate by at most this many corrections from the measurement residual.
+MAX_CORRECTIONS = 3
+
+
+def _corrections(factor, H, HW, z, x):
+    """``x += (H Ω H^T)^-1 H Ω (z - H^T x)`` until the correction stops shrinking.
+
+    The first correction is the estimate (from ``x = 0``, or from ``start``); the next ones are
+    iterative refinement of the *least-squares* problem: the residual ``z - H^T x`` is formed in
+    measurement space, where it is small and well represented, not as ``H Ω z - (H Ω H^T) x``.
+    On two 5000-pose chains joined at both ends (LAGO's phase 3) one solve left the poses 1e-7
+    to 3e-6 from the exact BLUE, depending on the backend; the corrections reach 1e-13.
+    """
+    previous = np.inf
+    for _ in range(1 + MAX_CORRECTIONS):
+        dx = factor.solve(HW @ (z - H.T @ x))
+        x = x + dx
+        size = float(np.linalg.norm(dx))
+        if size <= 4 * np.finfo(float).eps * float(np.linalg.norm(x)) or size > 0.5 * previous:
+            break
+        previous = size
+    return x
 
 
 def propagate_covariance(J, P):

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -50,6 +51,7 @@ from .graph import (
     _edge_chi2,
     _numeric,
     as_graph_poses,
+    check_graph,
     describe_bad_information,
     edge_errors,
     first_bad_information,
@@ -58,8 +60,9 @@ from .graph import (
 from .linalg import (
     BACKENDS,
     SparseCholesky,
+    core_size,
+    elimination_ordering,
     expand_ordering,
-    fill_reducing_ordering,
     pcg,
 )
 
@@ -299,34 +302,44 @@ class Prior:
         return cls(vertex, mean, np.diag(1.0 / sig**2))
 
 
-def _as_priors(prior):
+def _as_priors(prior, where):
+    """``prior`` as a tuple of :class:`Prior`: None, one Prior, or an iterable of them (not a
+    number, a bool, text or a dict); else an OptionTypeError naming ``where``."""
     if prior is None:
         return ()
     if isinstance(prior, Prior):
         return (prior,)
+    if isinstance(prior, str | bytes | dict) or not isinstance(prior, Iterable):
+        raise OptionTypeError(
+            f"{where}: prior must be a lagolib.Prior, a list of them, or None; got {prior!r} "
+            f"({type(prior).__name__}); a lagolib.Prior holds one vertex id"
+        )
     priors = tuple(prior)
     for p in priors:
         if not isinstance(p, Prior):
             raise OptionTypeError(
-                f"prior must be a Prior or a sequence of Prior; got {type(p).__name__}"
+                f"{where}: prior must be a lagolib.Prior or a list of them; it holds {p!r} "
+                f"({type(p).__name__})"
             )
     return priors
 
 
-def resolve_gauge(graph, fixed=None, prior=None):
+def resolve_gauge(graph, fixed=None, prior=None, *, where="resolve_gauge"):
     """The gauge :func:`optimize` uses: ``(fixed ids, priors)``, checked by :func:`check_gauge`.
 
     ``fixed=None`` means: the vertex with the smallest id when no prior is given, else none.
+    ``where`` (the caller's name) starts the error messages.
     """
-    priors = _as_priors(prior)
+    check_graph(graph, where)
+    priors = _as_priors(prior, where)
     if fixed is None:
         fixed = () if priors or graph.n == 0 else (int(np.min(graph.ids)),)
     fixed = tuple(np.atleast_1d(np.asarray(fixed, dtype=object)).tolist())
-    check_gauge(graph, fixed, priors)
+    check_gauge(graph, fixed, priors, where=where)
     return fixed, priors
 
 
-def check_gauge(graph, fixed=(), prior=None):
+def check_gauge(graph, fixed=(), prior=None, *, where="check_gauge"):
     """Raise :class:`~lagolib.GaugeError` unless every connected component is anchored.
 
     The χ² of a pose graph depends only on relative poses, so ``H`` is singular unless each
@@ -344,8 +357,9 @@ def check_gauge(graph, fixed=(), prior=None):
     GaugeError
         Naming the first component without a gauge and what to pass.
     """
-    fixed_idx = vertex_rows(graph, fixed, "fixed")
-    prior_idx = vertex_rows(graph, [p.vertex for p in _as_priors(prior)], "prior")
+    check_graph(graph, where)
+    fixed_idx = vertex_rows(graph, fixed, f"{where}: fixed")
+    prior_idx = vertex_rows(graph, [p.vertex for p in _as_priors(prior, where)], f"{where}: prior")
     count, labels = graph.components()
     anchored = np.zeros(count, dtype=bool)
     anchored[labels[np.concatenate([fixed_idx, prior_idx])]] = True
@@ -399,6 +413,8 @@ def build_linear_system_loop(graph, poses=None, *, prior=None, error="t2v"):
     H : scipy.sparse.csr_matrix, shape (3n, 3n)
     b : ndarray, shape (3n,)
     """
+    check_graph(graph, "build_linear_system_loop")
+    priors = _as_priors(prior, "build_linear_system_loop")
     x = as_graph_poses(graph, poses)
     blocks = {}
     b = np.zeros((graph.n, 3))
@@ -416,8 +432,8 @@ def build_linear_system_loop(graph, poses=None, *, prior=None, error="t2v"):
         add(i, j, A.T @ omega @ B)
         add(j, i, B.T @ omega @ A)
         add(j, j, B.T @ omega @ B)
-    for p in _as_priors(prior):
-        (k,) = vertex_rows(graph, [p.vertex], "prior")
+    for p in priors:
+        (k,) = vertex_rows(graph, [p.vertex], "build_linear_system_loop: prior")
         omega = np.asarray(p.information)
         e, J = prior_jacobian(x[k], p.mean, error=error)
         b[k] += J.T @ omega @ e
@@ -454,8 +470,9 @@ def reduce_system(graph, H, b, fixed):
     b_free : ndarray, shape (3k,)
         ``k = n - len(fixed)``, free poses in row order of the graph.
     """
+    check_graph(graph, "reduce_system")
     keep = np.ones(graph.n, dtype=bool)
-    keep[vertex_rows(graph, fixed, "fixed")] = False
+    keep[vertex_rows(graph, fixed, "reduce_system: fixed")] = False
     rows = (3 * np.flatnonzero(keep)[:, None] + np.arange(3)).ravel()
     H = sp.csr_matrix(H)
     return H[rows][:, rows], np.asarray(b)[rows]
@@ -498,11 +515,10 @@ class LinearSystem:
     """
 
     def __init__(self, graph, *, fixed=(), prior=None, error="t2v"):
-        if not isinstance(graph, PoseGraph):
-            raise TypeError(f"graph must be a PoseGraph; got {type(graph).__name__}")
+        check_graph(graph, "LinearSystem")
         check_choice(error, "error", "LinearSystem", ERRORS)
         self.graph, self.error = graph, error
-        self.priors = _as_priors(prior)
+        self.priors = _as_priors(prior, "LinearSystem")
         n = graph.n
         fixed_idx = vertex_rows(graph, fixed, "fixed")
         is_free = np.ones(n, dtype=bool)
@@ -594,19 +610,28 @@ class LinearSystem:
         return cls._terms is LinearSystem._terms and cls._edge_weights is LinearSystem._edge_weights
 
     def ordering(self):
-        """A nested-dissection ordering of ``H``'s rows, from the pose graph (None without MKL).
+        """An elimination order of ``H``'s rows, from the pose graph, stable on long chains.
 
-        METIS runs on the ``k x k`` pattern of the free poses' blocks
-        (:func:`lagolib.linalg.fill_reducing_ordering`) and each pose's three rows follow it —
-        cheaper than ordering the ``3k`` rows and as good.
+        :func:`lagolib.linalg.elimination_ordering` on the ``k x k`` pattern of the free poses'
+        blocks — nested dissection on the cycles, away from the gauge (the fixed poses' neighbours
+        and the poses with a prior) on the tree-like parts — and each pose's three rows follow it.
         """
         k = self.free.size
-        brow, bcol = self._blocks
-        pattern = sp.csr_matrix((np.ones(brow.size), (brow, bcol)), shape=(k, k))
-        perm = fill_reducing_ordering(pattern)
-        if perm is None:
-            return None
+        e = self._red[self.graph.edges]  # -1 where a pose is fixed
+        near = np.concatenate([e[e[:, 0] < 0, 1], e[e[:, 1] < 0, 0], self._red[self._prior_idx]])
+        perm = elimination_ordering(self._pose_pattern(), near[near >= 0])
         return expand_ordering(perm, 3 * np.arange(k)[:, None] + np.arange(3))
+
+    def core_rows(self):
+        """Rows of ``H`` in the pose graph's 2-core (:func:`lagolib.linalg.core_size`): where
+        the factorization's work is, which decides ``backend="auto"``."""
+        return 3 * core_size(self._pose_pattern())
+
+    def _pose_pattern(self):
+        """The ``k x k`` pattern of the free poses' blocks of ``H``."""
+        k = self.free.size
+        brow, bcol = self._blocks
+        return sp.csr_matrix((np.ones(brow.size), (brow, bcol)), shape=(k, k))
 
     def _edge_weights(self):
         """The weight of every edge's residual: its information matrix, shape (m, 3, 3)."""
@@ -702,6 +727,24 @@ class LinearSystem:
         data = H.data.copy()
         data[self._diag_slot] += lam
         return sp.csr_matrix((data, self._indices, self._indptr), shape=H.shape)
+
+    def rounding_floor(self, poses):
+        """How far χ² at ``poses`` can move from floating-point rounding alone.
+
+        Each error ``e_ij`` is computed from coordinates of size ``|t_i| + |t_j|``, so it carries
+        a rounding error of about ``4 eps (|t_i| + |t_j| + |z_ij| + pi)``; its term
+        ``e^T Omega e`` moves by up to ``2 sqrt(e^T Omega e) sqrt(tr Omega)`` times that.  Below
+        this sum no step can be told to decrease χ² (:func:`optimize` then stops as converged).
+        """
+        g = self.graph
+        edges = g.edges
+        terms = _edge_chi2(g, poses[edges[:, 0]], poses[edges[:, 1]], self.error)
+        size = np.abs(poses[:, :2]).sum(axis=1)
+        de = 4 * np.finfo(float).eps * (
+            size[edges[:, 0]] + size[edges[:, 1]] + np.abs(g.measurements).sum(axis=1) + np.pi
+        )
+        trace = np.einsum("kaa->k", g.information)
+        return float(np.sum(2 * np.sqrt(terms * trace) * de + trace * de**2))
 
     def update(self, poses, dx):
         """``x <- x + dx`` on the free poses (lecture notes, "Algorithm" line 5), angles wrapped.
@@ -874,13 +917,14 @@ class _LevenbergMarquardtDamping:
 class _LinearSolver:
     """``solve(H, rhs)``: sparse Cholesky (one symbolic analysis, refactored) or PCG.
 
-    ``ordering``, when given, is called once, by the first factorization and only for PARDISO:
-    :meth:`LinearSystem.ordering`, the pose graph's nested dissection.
+    ``ordering``, when given, is called once, by the first factorization that needs it:
+    :meth:`LinearSystem.ordering`, the pose graph's elimination order; ``auto_rows`` (called only
+    for large systems) decides ``backend="auto"``: :meth:`LinearSystem.core_rows`.
     """
 
-    def __init__(self, kind, backend, ordering=None):
+    def __init__(self, kind, backend, ordering=None, auto_rows=None):
         self.kind, self.backend = kind, backend
-        self._ordering = ordering
+        self._ordering, self._auto_rows = ordering, auto_rows
         self.factor = None
         self.iterations = []  # PCG iterations per solve
 
@@ -890,7 +934,9 @@ class _LinearSolver:
             self.iterations.append(out.iterations)
             return out.x
         if self.factor is None:
-            self.factor = SparseCholesky(H, self.backend, check=False, ordering=self._ordering)
+            self.factor = SparseCholesky(
+                H, self.backend, check=False, ordering=self._ordering, auto_rows=self._auto_rows
+            )
         else:
             self.factor.refactor(H)
         return self.factor.solve(rhs)
@@ -1058,9 +1104,8 @@ def optimize(
     (True, True, True)
     """
     t_start = time.perf_counter()
-    if not isinstance(graph, PoseGraph):
-        raise OptionTypeError(f"optimize: graph must be a PoseGraph; got {type(graph).__name__}")
     where = "optimize"
+    check_graph(graph, where)
     method = check_choice(method, "method", where, METHODS)
     error = check_choice(error, "error", where, ERRORS)
     linear_solver = check_choice(linear_solver, "linear_solver", where, LINEAR_SOLVERS)
@@ -1072,10 +1117,10 @@ def optimize(
     max_backtracks = check_int(max_backtracks, "max_backtracks", where, minimum=0)
     verbose = check_bool(verbose, "verbose", where)
     callback = check_callback(callback, "callback", where)
-    fixed, priors = resolve_gauge(graph, fixed, prior)
+    fixed, priors = resolve_gauge(graph, fixed, prior, where=where)
     x = as_graph_poses(graph, initial, "initial", "initial guess")
     system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
-    solve = _LinearSolver(linear_solver, backend, system.ordering)
+    solve = _LinearSolver(linear_solver, backend, system.ordering, system.core_rows)
     if method == "gn":
         control = _GaussNewtonSteps(max_backtracks)
     else:
@@ -1131,6 +1176,13 @@ def _minimize(system, x, control, solve, trace, max_iterations, tol, step_tol, c
                 break
             if chi_new - chi <= tol * chi:  # no decrease, but no increase worth a retry
                 stop = True, "converged: no step decreases the error by more than tol"
+                break
+            floor = getattr(system, "rounding_floor", None)
+            if floor is not None and chi_new - chi <= floor(x):
+                stop = True, (
+                    "converged: the error is at the rounding level of its evaluation (no step can "
+                    "decrease it measurably)"
+                )
                 break
             give_up = control.reject()  # halve the step / raise the damping
             if give_up is not None:

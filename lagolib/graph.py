@@ -21,6 +21,7 @@ reading, so inside lagolib every information matrix follows the one convention a
 from __future__ import annotations
 
 import numbers
+import reprlib
 from decimal import Decimal
 
 import numpy as np
@@ -28,15 +29,17 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from . import se2
-from .checks import check_choice
-from .errors import GraphError, GraphTypeError
+from .checks import check_bool, check_choice, check_int, check_real
+from .errors import GraphError, GraphTypeError, OptionError, OptionTypeError
 
 __all__ = [
     "as_graph_poses",
+    "check_graph",
     "PoseGraph",
     "residuals",
     "chi2",
     "vertex_rows",
+    "vertex_row",
     "vertex_ids",
     "check_poses",
     "first_bad_information",
@@ -391,6 +394,19 @@ class PoseGraph:
         new._check_poses()
         return new
 
+    def _scaled_translations(self, k):
+        """This graph with every position and measured translation times ``2**-k`` (exact: a
+        power of two), for algorithms whose translation updates are linear in the translations
+        (:func:`lagolib.sgd.sgd`) to run far from float64's limits.  Nothing is re-checked."""
+        new = object.__new__(PoseGraph)
+        poses, z = self._poses.copy(), self._measurements.copy()
+        poses[:, :2] = np.ldexp(poses[:, :2], -k)
+        z[:, :2] = np.ldexp(z[:, :2], -k)
+        new._poses, new._measurements = _frozen(poses, float), _frozen(z, float)
+        new._ids, new._edges, new._information = self._ids, self._edges, self._information
+        new._cache = self._cache  # structure only
+        return new
+
     def with_information(self, information):
         """A new graph with the same poses, edges and measurements and other information.
 
@@ -476,20 +492,98 @@ class PoseGraph:
         Raises
         ------
         GraphError
-            If the odometric chain has a gap (the message names it).
+            If the odometric chain has a gap (the message names it), ``start`` is not one finite
+            pose, or composing the measurements overflows float64 (the message names the vertex).
         """
+        if start is not None:
+            start = _numeric(start, "odometry_guess: start", float)
+            if start.shape != (3,):
+                raise GraphError(
+                    f"odometry_guess: start must be one pose (x, y, theta); got shape {start.shape}"
+                )
+            check_poses(start[None], None, "odometry_guess: start pose")
+        if self.n == 0:
+            return np.zeros((0, 3))
         edge, forward = self.odometric_chain()
         by_rank = np.argsort(self._ids, kind="stable")
-        x0 = self._poses[by_rank[0]] if start is None else np.asarray(start, dtype=float)
+        x0 = self._poses[by_rank[0]] if start is None else start
         z = self._measurements[edge]
         z = np.where(forward[:, None], z, se2.inverse(z))
-        theta = x0[2] + np.concatenate([[0.0], np.cumsum(z[:, 2])])
-        dt = np.einsum("kab,kb->ka", se2.rotation(theta[:-1]), z[:, :2])
-        rho = x0[:2] + np.concatenate([np.zeros((1, 2)), np.cumsum(dt, axis=0)])
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported below
+            theta = x0[2] + np.concatenate([[0.0], np.cumsum(z[:, 2])])
+            ok = np.abs(theta[:-1]) <= se2.MAX_ANGLE  # larger angles are refused below
+            dt = np.einsum("kab,kb->ka", se2.rotation(np.where(ok, theta[:-1], 0.0)), z[:, :2])
+            rho = x0[:2] + np.concatenate([np.zeros((1, 2)), np.cumsum(dt, axis=0)])
         out = np.empty((self.n, 3))
         out[by_rank, :2] = rho
-        out[by_rank, 2] = se2.wrap_angle(theta)
+        out[by_rank, 2] = se2.wrap_angle(np.where(np.abs(theta) <= se2.MAX_ANGLE, theta, 0.0))
+        bad = np.flatnonzero(~(np.all(np.isfinite(rho), axis=1) & (np.abs(theta) <= se2.MAX_ANGLE)))
+        if bad.size:  # measurements too large to compose (O(n), vectorized)
+            k = int(by_rank[bad[0]])
+            raise GraphError(
+                f"odometry_guess: composing the odometry overflows at vertex id {self._ids[k]} "
+                f"(index {k}): position {rho[bad[0]].tolist()}, summed angle {theta[bad[0]]!r} "
+                f"rad (float64 holds positions up to 1.8e308, lagolib angles up to {_ANGLE_BOUND}); "
+                "the odometric measurements are too large to compose",
+                vertex=k,
+            )
         return out
+
+
+def _shown(value, limit=60):
+    """``value`` for a message: a short repr and its type."""
+    r = reprlib.Repr()
+    r.maxstring = r.maxother = limit
+    return f"{r.repr(value)} ({type(value).__name__})"
+
+
+def check_graph(graph, where):
+    """``graph`` if it is a :class:`PoseGraph`; else :class:`~lagolib.errors.OptionTypeError`.
+
+    The one check every public function taking a ``graph`` runs first, so that anything else —
+    a file name, an array of poses, a simulation or a result that *holds* a graph — is reported
+    by the function that was called, with what to pass instead, not as an AttributeError from
+    deep inside it.
+
+    Parameters
+    ----------
+    graph : object
+    where : str
+        The function's name, which starts the message.
+
+    Returns
+    -------
+    PoseGraph
+
+    Raises
+    ------
+    OptionTypeError
+        ``{where}: graph must be a lagolib.PoseGraph; got ...`` (a TypeError).
+
+    Examples
+    --------
+    >>> try:
+    ...     check_graph("intel.g2o", "chi2")
+    ... except TypeError as exc:
+    ...     print(exc)
+    chi2: graph must be a lagolib.PoseGraph; got 'intel.g2o' (str): read it first with lagolib.read
+    """
+    if isinstance(graph, PoseGraph):
+        return graph
+    try:
+        path = isinstance(graph, str | bytes) or hasattr(graph, "__fspath__")
+        held = isinstance(getattr(graph, "graph", None), PoseGraph)
+    except Exception:  # an object whose attributes raise: no hint from it
+        path = held = False
+    if path:
+        hint = "read it first with lagolib.read"
+    elif held:
+        hint = f"pass its .graph (a {type(graph).__name__} holds the PoseGraph in .graph)"
+    else:
+        hint = "read a file with lagolib.read or build one with lagolib.PoseGraph"
+    raise OptionTypeError(
+        f"{where}: graph must be a lagolib.PoseGraph; got {_shown(graph)}: {hint}"
+    )
 
 
 _INFO_OK, _NON_FINITE, _ASYMMETRIC, _NOT_PD, _OVERFLOW, _UNDERFLOW, _SINGULAR = range(7)
@@ -560,15 +654,38 @@ def first_bad_information(information, rtol=1e-9):
 
     Parameters
     ----------
-    information : ndarray, shape (m, 3, 3)
+    information : array_like, shape (m, 3, 3)
+        A stack of matrices (one matrix: ``information[None]``).
     rtol : float
         Asymmetry tolerance relative to the largest entry of each matrix.
+
+    Raises
+    ------
+    OptionError
+        ``information`` is not of shape (m, 3, 3), or ``rtol`` is not a finite number >= 0.
+    GraphTypeError
+        ``information`` is complex, text, bool or not numbers.
     """
+    where = "first_bad_information"
+    information = _information_stack(information, where)
+    rtol = check_real(rtol, "rtol", where, minimum=0.0)
     if len(information) == 0:
         return None
     code, _, _ = _information_check(information, rtol)
     idx = np.flatnonzero(code != _INFO_OK)
     return int(idx[0]) if idx.size else None
+
+
+def _information_stack(information, where):
+    """``information`` as a float array of shape (m, 3, 3), or an error naming ``where``."""
+    info = _numeric(information, f"{where}: information", float)
+    if info.ndim != 3 or info.shape[1:] != (3, 3):
+        one = " (for one matrix pass information[None])" if info.shape == (3, 3) else ""
+        raise OptionError(
+            f"{where}: information must be a stack of 3x3 matrices, shape (m, 3, 3); got shape "
+            f"{info.shape}{one}"
+        )
+    return info
 
 
 def _times(a, scale):
@@ -583,7 +700,11 @@ def _times(a, scale):
 
 def describe_bad_information(info):
     """One sentence saying why a 3x3 information matrix is rejected, and what to do."""
-    info = np.asarray(info, dtype=float)
+    info = _numeric(info, "describe_bad_information: info", float)
+    if info.shape != (3, 3):
+        raise OptionError(
+            f"describe_bad_information: info must be one 3x3 matrix; got shape {info.shape}"
+        )
     code, eig, scale = _information_check(info[None])
     code, eig, scale = int(code[0]), eig[0], float(scale[0])
     eigs = "[" + ", ".join(_times(e, scale) for e in eig) + "]"
@@ -645,6 +766,7 @@ def vertex_ids(ids, n, where="ids"):
     GraphTypeError
         For complex, text or bool ids.
     """
+    n = check_int(n, "n", "vertex_ids", minimum=0)
     a = _numeric(ids, where, None)
     if a.dtype.kind == "f" and not isinstance(ids, np.ndarray):
         # numpy turns a list holding an int beyond int64 (e.g. 2**63) into floats: look again
@@ -696,7 +818,7 @@ def check_poses(poses, ids, what="pose"):
 
     Parameters
     ----------
-    poses : ndarray, shape (n, 3)
+    poses : array_like, shape (n, 3)
     ids : ndarray of int, shape (n,), or None
         Vertex ids, for the message; None for a trajectory without ids (the message names the
         row).
@@ -713,6 +835,10 @@ def check_poses(poses, ids, what="pose"):
     def name(k):
         return f"{what} row {k}" if ids is None else f"{what} of vertex id {ids[k]} (index {k})"
 
+    if not (isinstance(poses, np.ndarray) and poses.dtype.kind == "f"):
+        poses = _numeric(poses, f"{what}s", float)
+    if poses.ndim != 2 or poses.shape[1] != 3:
+        raise GraphError(f"{what}s must have shape (k, 3); got {poses.shape}")
     bad = np.flatnonzero(~np.all(np.isfinite(poses), axis=1))
     if bad.size:
         k = int(bad[0])
@@ -762,6 +888,7 @@ def as_graph_poses(graph, poses, name="poses", what="pose"):
     GraphError
         Wrong shape; a non-finite pose or an absurd angle, naming the vertex id (:func:`check_poses`).
     """
+    check_graph(graph, "as_graph_poses")
     if poses is None:
         return graph.poses.copy()
     x = _numeric(poses, name, float)
@@ -771,13 +898,17 @@ def as_graph_poses(graph, poses, name="poses", what="pose"):
     return x.copy()
 
 
-def _edge_arrays(graph, poses):
+def _edge_arrays(graph, poses, where):
+    """The poses at both ends of every edge, ``(p_i, p_j)``, with ``poses`` checked (finite,
+    ``|theta| <= 1e9``, shape (n, 3)) once — O(n), vectorized."""
+    check_graph(graph, where)
     if poses is None:
         poses = graph.poses
     else:
-        poses = _numeric(poses, "poses", float)
+        poses = _numeric(poses, f"{where}: poses", float)
         if poses.shape != (graph.n, 3):
-            raise GraphError(f"poses must have shape ({graph.n}, 3); got {poses.shape}")
+            raise GraphError(f"{where}: poses must have shape ({graph.n}, 3); got {poses.shape}")
+        check_poses(poses, graph.ids, f"{where}: pose")
     return poses[graph.edges[:, 0]], poses[graph.edges[:, 1]]
 
 
@@ -804,9 +935,53 @@ def residuals(graph, poses=None, *, error="t2v"):
     Returns
     -------
     ndarray, shape (m, 3)
+        Never NaN: a translation error beyond float64 (poses near ±1e308 on opposite sides) is
+        ``±inf`` (see :func:`edge_errors`).
     """
-    p_i, p_j = _edge_arrays(graph, poses)
+    check_choice(error, "error", "residuals", ERRORS)
+    p_i, p_j = _edge_arrays(graph, poses, "residuals")
     return edge_errors(p_i, p_j, graph.measurements, error=error)
+
+
+def _raw_edge_errors(p_i, p_j, z, error):
+    """The formula of :func:`edge_errors`, with nothing guarded."""
+    rel = se2.between(p_i, p_j)  # X_i^-1 X_j, Carlone et al. 2011 eq. (1)
+    d = rel[..., :2] - z[..., :2]
+    c, s = np.cos(z[..., 2]), np.sin(z[..., 2])
+    e = np.stack(
+        [
+            c * d[..., 0] + s * d[..., 1],
+            -s * d[..., 0] + c * d[..., 1],
+            se2.wrap_angle(rel[..., 2] - z[..., 2]),
+        ],
+        axis=-1,
+    )
+    return se2.log(e) if error == "log" else e
+
+
+def _scaled_edge_errors(p_i, p_j, z, error):
+    """``(e', k)`` with ``e = diag(2^k, 2^k, 1) e'`` per row, computed without overflow.
+
+    The translation part of the error (``t2v`` and ``log`` alike) is linear and homogeneous in
+    the translations ``t_i, t_j, t_z``, and the angle part does not depend on them; dividing the
+    three translations of a row by ``2^k > max |t|`` (exact: a power of two) therefore divides
+    its translation error by ``2^k`` and leaves the angle error alone, while every intermediate —
+    ``t_j - t_i`` above all — stays below 4 in magnitude.  The same scaling as
+    :mod:`lagolib.metrics` uses.  Rows of shape (r, 3).
+    """
+    big = np.max(np.abs(np.concatenate([p_i[:, :2], p_j[:, :2], z[:, :2]], axis=1)), axis=1)
+    k = np.frexp(big)[1].astype(np.int64)  # |t| < 2**k (k = 0 for zeros)
+
+    def scaled(p):
+        return np.column_stack([np.ldexp(p[:, :2], -k[:, None]), p[:, 2]])
+
+    return _raw_edge_errors(scaled(p_i), scaled(p_j), scaled(z), error), k
+
+
+def _overflowed_rows(p_i, p_j, z, bad):
+    """The rows ``bad`` (a mask over the broadcast leading shape) of the three pose arrays."""
+    p_i, p_j, z = np.broadcast_arrays(np.asarray(p_i, float), np.asarray(p_j, float), z)
+    return p_i[bad], p_j[bad], z[bad]
 
 
 def edge_errors(p_i, p_j, z, *, error="t2v"):
@@ -814,6 +989,11 @@ def edge_errors(p_i, p_j, z, *, error="t2v"):
 
     The one place lagolib evaluates the error; :func:`residuals` applies it to a graph's edges,
     :func:`lagolib.gauss_newton.edge_jacobians` differentiates it.
+
+    Poses far apart near the ends of float64 (``t_j - t_i`` beyond 1.8e308) do not give NaN:
+    those rows are computed again with their translations scaled by a power of two
+    (:func:`_scaled_edge_errors`), so an error component is exact where float64 can hold it and
+    ``±inf`` where it cannot.  The check costs one ``isfinite`` over the result.
 
     Parameters
     ----------
@@ -827,18 +1007,15 @@ def edge_errors(p_i, p_j, z, *, error="t2v"):
     """
     check_choice(error, "error", "edge_errors", ERRORS)
     z = se2._as_poses(z, "z")
-    rel = se2.between(p_i, p_j)  # X_i^-1 X_j, Carlone et al. 2011 eq. (1)
-    d = rel[..., :2] - z[..., :2]
-    c, s = np.cos(z[..., 2]), np.sin(z[..., 2])
-    e = np.stack(
-        [
-            c * d[..., 0] + s * d[..., 1],
-            -s * d[..., 0] + c * d[..., 1],
-            se2.wrap_angle(rel[..., 2] - z[..., 2]),
-        ],
-        axis=-1,
-    )
-    return se2.log(e) if error == "log" else e
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is caught and redone below
+        e = _raw_edge_errors(p_i, p_j, z, error)
+    if not np.isfinite(e).all():  # rare: an intermediate overflowed; redo those rows scaled
+        bad = ~np.all(np.isfinite(e), axis=-1)
+        es, k = _scaled_edge_errors(*_overflowed_rows(p_i, p_j, z, bad), error)
+        with np.errstate(over="ignore"):
+            es[:, :2] = np.ldexp(es[:, :2], k[:, None])  # ±inf beyond float64, never NaN
+        e[bad] = es
+    return e
 
 
 def chi2(graph, poses=None, *, per_edge=False, error="t2v"):
@@ -862,19 +1039,82 @@ def chi2(graph, poses=None, *, per_edge=False, error="t2v"):
     Returns
     -------
     float, or ndarray of shape (m,) when ``per_edge``
+        ``inf`` (never NaN) for a term beyond float64, e.g. poses near ±1e308 joined by an edge.
     """
-    terms = _edge_chi2(graph, *_edge_arrays(graph, poses), error)
+    per_edge = check_bool(per_edge, "per_edge", "chi2")
+    check_choice(error, "error", "chi2", ERRORS)
+    terms = _edge_chi2(graph, *_edge_arrays(graph, poses, "chi2"), error)
     return terms if per_edge else float(terms.sum())
 
 
 def _edge_chi2(graph, p_i, p_j, error):
-    """``e_ij^T Omega_ij e_ij`` per edge at endpoint poses ``p_i``, ``p_j`` (unchecked), (m,)."""
-    e = edge_errors(p_i, p_j, graph.measurements, error=error)
-    return np.einsum("ka,kab,kb->k", e, graph.information, e)
+    """``e_ij^T Omega_ij e_ij`` per edge at endpoint poses ``p_i``, ``p_j`` (unchecked), (m,).
+
+    One ``isfinite`` over the ``m`` terms; a term that is not finite (an overflow: the poses are
+    finite) is computed again scaled, ``4^k (v^T Omega v)`` with ``v = (e'_t, 2^-k e_theta)``
+    from :func:`_scaled_edge_errors` — ``inf`` when the term is beyond float64, never NaN.
+    """
+    z = graph.measurements
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is caught and redone below
+        e = _raw_edge_errors(p_i, p_j, z, error)
+        terms = np.einsum("ka,kab,kb->k", e, graph.information, e)
+    if not np.isfinite(terms).all():
+        bad = ~np.isfinite(terms)
+        terms[bad] = _scaled_edge_chi2(p_i[bad], p_j[bad], z[bad], graph.information[bad], error)
+    return terms
+
+
+def _scaled_edge_chi2(p_i, p_j, z, information, error):
+    """``e^T Omega e`` per row computed as ``4^k (v^T Omega v)``, ``v = (e'_t, 2^-k e_theta)``
+    (:func:`_scaled_edge_errors`): no intermediate overflows, ``inf`` when the term itself is
+    beyond float64.  Rows of shape (r, 3), (r, 3, 3)."""
+    es, k = _scaled_edge_errors(p_i, p_j, z, error)
+    es[:, 2] = np.ldexp(es[:, 2], -k)
+    q = np.maximum(np.einsum("ka,kab,kb->k", es, information, es), 0.0)
+    with np.errstate(over="ignore"):
+        return np.ldexp(q, 2 * k)
+
+
+def _by_id(graph):
+    """Rows of ``graph`` sorted by vertex id (stable), cached with the graph's structure."""
+    if "by_id" not in graph._cache:
+        rows = np.argsort(graph.ids, kind="stable")
+        rows.setflags(write=False)
+        graph._cache["by_id"] = rows
+    return graph._cache["by_id"]
+
+
+def _id_array(vertices, what):
+    """Vertex ids as a 1-D object or int64 array, every one an integer (not a bool)."""
+    if isinstance(vertices, np.ndarray) and vertices.dtype.kind in "iu":
+        a = np.atleast_1d(vertices)
+    else:
+        if isinstance(vertices, np.ndarray) and vertices.dtype.kind != "O":
+            raise GraphTypeError(
+                f"{what}: vertex ids are integers; got an array of dtype {vertices.dtype}"
+            )
+        try:
+            a = np.atleast_1d(np.asarray(vertices, dtype=object))
+        except (TypeError, ValueError) as exc:
+            raise GraphTypeError(
+                f"{what}: vertex ids are integers; got {_shown(vertices)}: {exc}"
+            ) from None
+        if a.ndim == 1:
+            for v in a.tolist():
+                if isinstance(v, bool | np.bool_) or not isinstance(v, numbers.Integral):
+                    raise GraphTypeError(f"{what}: vertex ids are integers; got {_shown(v)}")
+    if a.ndim != 1:
+        raise GraphTypeError(
+            f"{what}: vertex ids must be one id or a flat sequence of ids; got an array of shape "
+            f"{a.shape}"
+        )
+    return a
 
 
 def vertex_rows(graph, vertices, what="vertex"):
     """Row indices (into ``graph.poses``) of vertex ids.
+
+    Vectorized (one ``searchsorted`` over the ids, sorted once per graph).
 
     Parameters
     ----------
@@ -890,23 +1130,77 @@ def vertex_rows(graph, vertices, what="vertex"):
 
     Raises
     ------
+    GraphTypeError
+        For an id that is not an integer (a float, a bool, text, a nested list); a TypeError
+        and a GraphError.
     GraphError
-        For an id that is not an integer or not in the graph (the message names it).
+        For an id not in the graph (the message names it).
     """
-    ids = np.asarray(graph.ids)
-    vertices = np.atleast_1d(np.asarray(vertices, dtype=object))
-    out = []
-    if vertices.size == 0:
+    check_graph(graph, "vertex_rows")
+    a = _id_array(vertices, what)
+    if a.size == 0:
         return np.zeros(0, dtype=np.int64)
-    sorter = np.argsort(ids, kind="stable")
-    for v in vertices:
-        if isinstance(v, bool | np.bool_) or not isinstance(v, int | np.integer):
-            raise GraphError(f"{what}: vertex ids are integers; got {v!r}")
-        k = np.searchsorted(ids, v, sorter=sorter)
-        if k >= len(ids) or ids[sorter[k]] != v:
+    ids = graph.ids
+    if graph.n == 0:
+        raise GraphError(
+            f"{what}: vertex id {a[0]} is not in the graph (the graph has no vertices)"
+        )
+    if a.dtype.kind != "i":  # Python ints of any size, or uint64: beyond int64 is never an id
+        outside = [v for v in a.tolist() if not _INT64.min <= int(v) <= _INT64.max]
+        if outside:
             raise GraphError(
-                f"{what}: vertex id {v} is not in the graph (ids run from {ids.min()} to "
-                f"{ids.max()})"
+                f"{what}: vertex id {outside[0]} is not in the graph (ids run from {ids.min()} "
+                f"to {ids.max()})"
             )
-        out.append(sorter[k])
-    return np.asarray(out, dtype=np.int64)
+        a = a.astype(np.int64)
+    sorter = _by_id(graph)
+    k = np.minimum(np.searchsorted(ids, a, sorter=sorter), graph.n - 1)
+    rows = sorter[k]
+    missing = np.flatnonzero(ids[rows] != a)
+    if missing.size:
+        raise GraphError(
+            f"{what}: vertex id {a[missing[0]]} is not in the graph (ids run from {ids.min()} to "
+            f"{ids.max()})"
+        )
+    return rows.astype(np.int64)
+
+
+def vertex_row(graph, vertex, what="vertex"):
+    """Row index (into ``graph.poses``) of **one** vertex id — an anchor, a fixed pose, an end.
+
+    The one check for arguments that name a single vertex: an integer (a Python or numpy integer,
+    or a 0-d integer array), not a bool, a float, text or a sequence.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    vertex : int
+    what : str
+        Who is asking and the argument's name, e.g. ``"bfs_tree: anchor"``; it starts the message.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    GraphTypeError
+        ``{what}: one vertex id (an integer) is needed; got ...`` (a TypeError and a GraphError).
+    GraphError
+        For an id not in the graph.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> g = PoseGraph(np.zeros((2, 3)), [[0, 1]], [[1.0, 0.0, 0.0]], [np.eye(3)], ids=[7, 3])
+    >>> vertex_row(g, 3), vertex_row(g, np.int64(7))
+    (1, 0)
+    """
+    check_graph(graph, "vertex_row")
+    v = vertex.item() if isinstance(vertex, np.ndarray) and vertex.ndim == 0 else vertex
+    if isinstance(v, bool | np.bool_) or not isinstance(v, numbers.Integral):
+        raise GraphTypeError(
+            f"{what}: one vertex id (an integer) is needed; got {_shown(vertex)}: a vertex id is "
+            "one of the integers in graph.ids"
+        )
+    return int(vertex_rows(graph, [int(v)], what)[0])

@@ -30,7 +30,9 @@ agree on for finite decimal numbers:
 
 * a file is ASCII text (UTF-8 is accepted in comments); a UTF-8 byte-order mark at its start is
   ignored; lines end with LF, CRLF or CR and are at most :data:`MAX_LINE_BYTES` long; fields are
-  separated by ASCII blanks (space, tab, vertical tab, form feed);
+  separated by ASCII blanks (space, tab, vertical tab, form feed) — a Unicode space or invisible
+  character (no-break space, ideographic space, zero-width space, ...) is not a separator, and
+  one in a tag or between two fields is a ParseError naming its line, column and name;
 * a vertex id is ``[-+]?[0-9]+`` and must fit int64 (ids are read and written exactly, never
   through float64);
 * any other number is ``[-+]?([0-9]+(\\.[0-9]*)?|\\.[0-9]+)([eE][-+]?[0-9]+)?``: not ``nan``,
@@ -44,15 +46,22 @@ agree on for finite decimal numbers:
 Nothing is lost on writing: ids are written as integers and floats with ``repr`` (shortest
 round-trip) precision, so ``read_g2o(write_g2o(g))`` gives bit-identical arrays.  For TORO the
 conversion to and from the g2o convention is two rotations, which round the information matrices
-by a few units in the last place of their largest entry; the TORO writer checks that what it
-writes reads back (it refuses, naming the edge, a matrix so ill-conditioned that the rotation
-would make it unreadable).
+by a few units in the last place of their largest entry; the TORO writer runs the reader's own
+check on what it is about to write and compares what would be read back with the graph (it
+refuses, naming the edge and before writing anything, a matrix so ill-conditioned that the
+rotation would make it unreadable or change it).  Readers and the TORO writer share that one
+check (``_file_information``), so whatever a writer accepts its reader reads back.
+
+Writers never leave a half-written file: each writes a hidden temporary file beside the
+destination and moves it into place (:func:`lagolib.files.atomic_write`), so a write that fails
+or is killed leaves the previous file as it was.
 """
 
 from __future__ import annotations
 
 import os
 import re
+import unicodedata
 import warnings
 from collections import Counter
 from itertools import compress, cycle
@@ -70,6 +79,7 @@ from .errors import (
     ParseError,
     SkippedLinesWarning,
 )
+from .files import atomic_write
 from .graph import (
     _ANGLE_BOUND,
     PoseGraph,
@@ -223,7 +233,49 @@ def _data_lines(path):
     for lineno, line in _raw_lines(path):
         tok = line.split()
         if tok and not tok[0].startswith(b"#"):
+            if not line.isascii():
+                _check_separators(line, path, lineno)
             yield lineno, tok
+
+
+def _char(c):
+    """``U+00A0 (NO-BREAK SPACE)``: a character named so that an invisible one can be found."""
+    return f"U+{ord(c):04X} ({unicodedata.name(c, 'unnamed')})"
+
+
+def _first_non_ascii(token):
+    """The first non-ASCII character of a token (bytes), described by :func:`_char`."""
+    text = token.decode("utf-8", "replace")
+    return next((_char(c) for c in text if ord(c) > 127), "a non-ASCII byte")
+
+
+def _check_separators(line, path, lineno):
+    """Raise ParseError for a Unicode space or invisible character used as a field separator.
+
+    Fields are separated by ASCII blanks (as g2o's and TORO's C++ readers split them).  A
+    no-break space, an ideographic space, a zero-width space, a byte-order mark or another
+    invisible character in a line's first token or between two fields glues them into one
+    token — a known tag becomes unknown, which ``ignore_unknown=True`` would then drop
+    silently, or two columns become one — so it is reported, with its column.  One at the end of
+    a later token (``1<NBSP> 2``) is left to the field's own message, which names it as well.
+    """
+    text = line.decode("utf-8", "replace")
+    blank = " \t\n\r\x0b\x0c"
+    start = len(text) - len(text.lstrip(blank))
+    tag_end = next((k for k in range(start, len(text)) if text[k] in blank), len(text))
+    for k, c in enumerate(text):
+        if ord(c) <= 127 or unicodedata.category(c) not in ("Zs", "Zl", "Zp", "Cc", "Cf"):
+            continue
+        in_tag = k < tag_end  # the tag (or a pose list's first column) must be exact
+        gluing = k + 1 < len(text) and text[k + 1] not in blank
+        if in_tag or gluing:
+            column = k + 1
+            raise ParseError(
+                path,
+                lineno,
+                f"column {column}: the character {_char(c)} is not a field separator; fields "
+                "are separated by ASCII spaces or tabs — replace it with a space (or delete it)",
+            )
 
 
 def _bad_token(tok, field, path, lineno, integer):
@@ -243,7 +295,7 @@ def _bad_token(tok, field, path, lineno, integer):
         return ParseError(path, lineno, f"{field} is not finite: {text!r}")
     hint = "numbers are ASCII decimals like -1.5e-3"
     if not tok.isascii():
-        hint += "; the file holds non-ASCII characters"
+        hint += f"; it holds the non-ASCII character {_first_non_ascii(tok)}"
     return ParseError(path, lineno, f"{field} is not a number: {text!r} ({hint})")
 
 
@@ -332,12 +384,17 @@ def _scan(path, fmt, ignore_unknown):
             if ignore_unknown:
                 skipped[_text(tag)] += 1
                 continue
+            advice = (
+                f"it holds the non-ASCII character {_first_non_ascii(tag)}: tags are ASCII"
+                if not tag.isascii()
+                else "pass ignore_unknown=True to skip such lines"
+            )
             fail(
                 ParseError(
                     path,
                     lineno,
                     f"unknown tag {_text(tag)!r} in a {fmt} file (expected "
-                    f"{' or '.join(_TAGS[fmt])}); pass ignore_unknown=True to skip such lines",
+                    f"{' or '.join(_TAGS[fmt])}); {advice}",
                 )
             )
         rec_fmt, is_edge = record
@@ -490,8 +547,12 @@ def _file_information(upper, dtheta, fmt):
     """What the reader makes of the six stored numbers per edge: ``(index, reason)`` of the
     first unusable matrix (``index`` None when all are fine) and the g2o-convention matrices.
 
-    The TORO writer calls this on what it is about to write, so that it never writes a file its
-    reader rejects.
+    The one validation of a file's information that readers and writers share: the readers
+    build their graph from the matrices returned here (exactly symmetric, so that
+    :class:`~lagolib.graph.PoseGraph` stores and checks these very bits), and the TORO writer
+    calls it on what it is about to write, so that it never writes a file its reader rejects.
+    (The g2o writer stores the graph's matrices exactly, and the graph checked them with the
+    same :func:`~lagolib.graph.first_bad_information`.)
     """
     info = _matrices(upper, fmt)
     bad = first_bad_information(info)
@@ -499,6 +560,9 @@ def _file_information(upper, dtheta, fmt):
         return bad, describe_bad_information(info[bad]), info
     if fmt == "toro":
         info = toro_to_g2o_information(info, dtheta)
+        # the rotation leaves the matrices asymmetric by rounding; PoseGraph would store (and
+        # check) their symmetric part, so that is what is checked here, bit for bit
+        info = 0.5 * (info + np.swapaxes(info, 1, 2))
         bad = first_bad_information(info)
         if bad is not None:
             return (
@@ -667,8 +731,10 @@ def write_toro(graph, path):
     ------
     GraphError
         If an information matrix is so ill-conditioned that after the rotation into TORO's frame
-        (and back, on reading) it would no longer be a usable information matrix; the message
-        names the edge.  Write such a graph with :func:`write_g2o`, which stores it exactly.
+        (and back, on reading) it would no longer be a usable information matrix, or would read
+        back further than 1e-13 of its largest entry from the graph's; the message names the
+        edge, and nothing is written.  Write such a graph with :func:`write_g2o`, which stores
+        it exactly.
     """
     _write(graph, path, "toro", "write_toro")
 
@@ -710,29 +776,60 @@ def _write(graph, path, fmt, where):
             f"{where}: the graph has no vertices; there is nothing a reader could read"
         )
     vtag, etag = _TAGS[fmt]
-    info = graph.information
-    dtheta = graph.measurements[:, 2]
-    if fmt == "toro":
-        info = g2o_to_toro_information(info, dtheta)
-    upper = np.stack([info[:, a, b] for a, b in _UPPER[fmt]], axis=-1)
-    if fmt == "toro" and graph.m:
-        bad, reason, _ = _file_information(upper, dtheta, fmt)
-        if bad is not None:
-            i, j = graph.ids[graph.edges[bad]].tolist()
-            raise GraphError(
-                f"{where}: edge {bad} (vertex ids {i} -> {j}) cannot be written in TORO's "
-                f"convention: {reason}.  (Its g2o-convention matrix is "
-                f"{graph.information[bad].tolist()}.)  Write the graph as g2o (write_g2o), "
-                "which stores information exactly, or make the matrix better conditioned",
-                edge=int(bad),
-            )
-    lines = [f"{vtag} {vid} {_fmt(p)}" for vid, p in zip(graph.ids.tolist(), graph.poses.tolist())]
+    upper = _stored_information(graph, fmt, where)
+    vertex_lines = (
+        f"{vtag} {vid} {_fmt(p)}\n" for vid, p in zip(graph.ids.tolist(), graph.poses.tolist())
+    )
     edge_vals = np.column_stack([graph.measurements, upper]).tolist()
     edge_ids = graph.ids[graph.edges].tolist()
-    lines += [f"{etag} {i} {j} {_fmt(v)}" for (i, j), v in zip(edge_ids, edge_vals)]
-    with open(path, "w", encoding="ascii", newline="\n") as f:
-        f.write("\n".join(lines))
-        f.write("\n")
+    edge_lines = (f"{etag} {i} {j} {_fmt(v)}\n" for (i, j), v in zip(edge_ids, edge_vals))
+    with atomic_write(path, "w", encoding="ascii", newline="\n") as f:
+        f.writelines(vertex_lines)
+        f.writelines(edge_lines)
+
+
+#: How far (relative to its largest entry) a matrix read back from a TORO file may be from the
+#: graph's: the two rotations (writer and reader) round by a few units in the last place.
+_TORO_RTOL = 1e-13
+
+
+def _stored_information(graph, fmt, where):
+    """The six numbers per edge the writer stores, shape (m, 6), checked to read back.
+
+    g2o stores the graph's (exactly symmetric) matrices exactly, and the graph checked them with
+    the reader's check.  TORO stores them rotated into frame ``i``; the reader's own
+    :func:`_file_information` is run on what will be written, and what it reads back must
+    equal the graph's matrix to :data:`_TORO_RTOL` of its largest entry — otherwise the graph is
+    refused (GraphError naming the edge) before anything is written.
+    """
+    info = graph.information
+    if fmt == "g2o" or not graph.m:
+        return np.stack([info[:, a, b] for a, b in _UPPER[fmt]], axis=-1)
+    dtheta = graph.measurements[:, 2]
+    toro = g2o_to_toro_information(info, dtheta)
+    toro = 0.5 * (toro + np.swapaxes(toro, 1, 2))
+    upper = np.stack([toro[:, a, b] for a, b in _UPPER[fmt]], axis=-1)
+    bad, reason, back = _file_information(upper, dtheta, fmt)
+    if bad is None:
+        scale = np.max(np.abs(info), axis=(1, 2))
+        drift = np.max(np.abs(back - info), axis=(1, 2))
+        far = np.flatnonzero(~(drift <= _TORO_RTOL * scale))
+        if far.size:
+            bad = int(far[0])
+            reason = (
+                f"it would read back as {back[bad].tolist()}, {drift[bad] / scale[bad]:.2g} of "
+                "its largest entry away"
+            )
+    if bad is not None:
+        i, j = graph.ids[graph.edges[bad]].tolist()
+        raise GraphError(
+            f"{where}: edge {bad} (vertex ids {i} -> {j}) cannot be written in TORO's "
+            f"convention: {reason}.  (Its g2o-convention matrix is "
+            f"{info[bad].tolist()}.)  Nothing was written.  Write the graph as g2o (write_g2o), "
+            "which stores information exactly, or make the matrix better conditioned",
+            edge=int(bad),
+        )
+    return upper
 
 
 # ----------------------------------------------------------------------------- pose lists
@@ -836,5 +933,5 @@ def write_poses(path, poses, ids=None):
             vertex=b,
         )
     check_poses(poses, ids, "write_poses: pose")
-    with open(path, "w", encoding="ascii", newline="\n") as f:
+    with atomic_write(path, "w", encoding="ascii", newline="\n") as f:
         f.writelines(f"{i} {_fmt(p)}\n" for i, p in zip(ids.tolist(), poses.tolist()))

@@ -19,6 +19,13 @@ Everything is vectorized over edges and poses.  Bad input raises a lagolib error
 (:class:`~lagolib.errors.GraphError` or :class:`~lagolib.errors.OptionError`, both
 :class:`ValueError`) naming the argument and what to do.
 
+Every metric accepts what the input checks accept — any finite coordinates — and computes in a
+scaled way: positions are divided by a power of two near the largest coordinate (exact in binary
+floating point) before any square or sum is formed, and errors are summarized relative to the
+largest one.  So no intermediate value overflows or underflows: a result is ``inf`` only when it
+is itself beyond float64's range (``eta_c`` of errors above 1.3e154, whose square is), never NaN,
+and coordinates near 1e155 or 1e-155 give the same digits as coordinates near 1.
+
 References
 ----------
 .. [1] R. Kümmerle, B. Steder, C. Dornhege, M. Ruhnke, G. Grisetti, C. Stachniss, A. Kleiner,
@@ -36,6 +43,7 @@ References
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -44,7 +52,7 @@ import numpy as np
 from . import se2
 from .checks import check_bool
 from .errors import GraphError, GraphTypeError, OptionError, OptionTypeError
-from .graph import PoseGraph, _numeric, as_graph_poses, check_poses, residuals
+from .graph import PoseGraph, _numeric, as_graph_poses, check_poses, edge_errors
 
 __all__ = [
     "ConstraintSatisfaction",
@@ -68,6 +76,52 @@ def _check_graph(graph, where, *, need_edges=False):
         )
     if need_edges and graph.m == 0:
         raise GraphError(f"{where}: the graph has no edges, so there is no constraint to measure")
+
+
+# ---------------------------------------------------------------------- scaling
+def _exponent(*positions):
+    """``e`` with ``|x| < 2**e`` for every entry of the arrays ``positions`` (0 when all are 0).
+
+    Dividing by ``2**e`` (:func:`numpy.ldexp`) is exact and brings every coordinate into
+    ``(-1, 1)``, so squares, products and sums of a few of them neither overflow nor underflow.
+    """
+    m = max((float(np.max(np.abs(a), initial=0.0)) for a in positions), default=0.0)
+    return math.frexp(m)[1] if m > 0 else 0
+
+
+def _scaled_poses(poses, e):
+    """``poses`` with the positions divided by ``2**e`` (the angles as they are)."""
+    out = np.array(poses, dtype=float)
+    out[..., :2] = np.ldexp(out[..., :2], -e)
+    return out
+
+
+def _unscale(x, e):
+    """``x * 2**e``; ``inf`` (no warning) where the true value is beyond float64's range."""
+    with np.errstate(over="ignore"):
+        return np.ldexp(x, e)
+
+
+def _root_mean_square(norms, e=0):
+    """``(sqrt(mean(v²)), mean(v²))`` for ``v = norms * 2**e``, without intermediate overflow or
+    underflow: the norms are summed relative to the largest one."""
+    m = float(np.max(norms, initial=0.0))
+    if m == 0.0:
+        return 0.0, 0.0
+    em = math.frexp(m)[1]
+    s = float(np.mean(np.ldexp(norms, -em) ** 2))  # in (0, 1]
+    return float(_unscale(math.sqrt(s), em + e)), float(_unscale(s, 2 * (em + e)))
+
+
+def _scaled_residuals(graph, x):
+    """``(e_s, e)``: the t2v errors of ``graph`` at ``x`` with their translations divided by
+    ``2**e`` — computed from positions and measured translations divided by ``2**e`` (the error
+    is linear in them), so that no intermediate value overflows."""
+    z = graph.measurements
+    e = _exponent(x[:, :2], z[:, :2])
+    xs, zs = _scaled_poses(x, e), _scaled_poses(z, e)
+    es = edge_errors(xs[graph.edges[:, 0]], xs[graph.edges[:, 1]], zs, error="t2v")
+    return es, e
 
 
 # ---------------------------------------------------------------------- constraint satisfaction
@@ -141,10 +195,11 @@ def constraint_satisfaction(graph, poses=None):
     where = "constraint_satisfaction"
     _check_graph(graph, where, need_edges=True)
     x = as_graph_poses(graph, poses, "poses")
-    e = residuals(graph, x, error="t2v")  # t2v(Z_ij^-1 X_i^-1 X_j), angle wrapped
-    with np.errstate(over="ignore"):  # poses ~1e200 apart: eta_c is inf, and says so
-        eta_c = float(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))  # Kümmerle et al. 2009: mean ||t(E)||²
-    eta_a = float(np.mean(e[:, 2] ** 2))  # Kümmerle et al. 2009: mean wrap(theta(E))²
+    es, scale = _scaled_residuals(graph, x)  # t2v(Z_ij^-1 X_i^-1 X_j) / 2^scale, angle wrapped
+    # Kümmerle et al. 2009: eta_c = mean ||t(E)||² (inf only when it is beyond float64's range,
+    # errors above 1.3e154), eta_a = mean wrap(theta(E))²
+    _, eta_c = _root_mean_square(np.hypot(es[:, 0], es[:, 1]), scale)
+    _, eta_a = _root_mean_square(np.abs(es[:, 2]))
     return ConstraintSatisfaction(eta_c, eta_a)
 
 
@@ -293,11 +348,16 @@ def sesync_objective(graph, poses=None, *, per_edge=False):
     per_edge = check_bool(per_edge, "per_edge", where)
     x = as_graph_poses(graph, poses, "poses")
     kappa, tau = sesync_parameters(graph)
-    r = residuals(graph, x, error="t2v")
-    chordal = 8.0 * np.sin(0.5 * r[:, 2]) ** 2  # ||R_j - R_i R_ij||_F² = 4 (1 - cos r)
-    # Rosen et al. 2019, Problem 1: kappa ||R_j - R_i R_ij||_F² + tau ||t_j - t_i - R_i t_ij||²
-    terms = kappa * chordal + tau * (r[:, 0] ** 2 + r[:, 1] ** 2)
-    return terms if per_edge else float(terms.sum())
+    rs, scale = _scaled_residuals(graph, x)  # translations divided by 2^scale
+    chordal = 8.0 * np.sin(0.5 * rs[:, 2]) ** 2  # ||R_j - R_i R_ij||_F² = 4 (1 - cos r)
+    # Rosen et al. 2019, Problem 1: kappa ||R_j - R_i R_ij||_F² + tau ||t_j - t_i - R_i t_ij||²,
+    # the translation term as (sqrt(tau) ||t||)² scaled back: inf only when it is beyond range
+    translation = _unscale((np.sqrt(tau) * np.hypot(rs[:, 0], rs[:, 1])) ** 2, 2 * scale)
+    terms = kappa * chordal + translation
+    if per_edge:
+        return terms
+    with np.errstate(over="ignore"):
+        return float(terms.sum())
 
 
 # ---------------------------------------------------------------------- trajectories
@@ -366,15 +426,17 @@ def _readonly(a):
     return a
 
 
-def _summary(dt, dtheta, pairs=None, alignment=None):
-    """:class:`TrajectoryError` of translation vectors ``dt`` (k, 2) and wrapped angles (k,)."""
-    trans = np.hypot(dt[:, 0], dt[:, 1])
+def _summary(dt, dtheta, pairs=None, alignment=None, scale=0):
+    """:class:`TrajectoryError` of translation vectors ``dt * 2**scale`` (k, 2) and wrapped
+    angles (k,); no intermediate value overflows (:func:`_root_mean_square`)."""
+    trans_s = np.hypot(dt[:, 0], dt[:, 1])
+    trans = _unscale(trans_s, scale)
     rot = np.abs(dtheta)
     return TrajectoryError(
-        translation_rmse=float(np.sqrt(np.mean(trans**2))),
-        translation_mean=float(np.mean(trans)),
+        translation_rmse=_root_mean_square(trans_s, scale)[0],
+        translation_mean=float(_unscale(np.mean(trans_s), scale)),
         translation_max=float(np.max(trans)),
-        rotation_rmse=float(np.sqrt(np.mean(rot**2))),
+        rotation_rmse=_root_mean_square(rot)[0],
         rotation_mean=float(np.mean(rot)),
         rotation_max=float(np.max(rot)),
         translation=_readonly(trans),
@@ -467,9 +529,20 @@ def align(poses, reference):
     p = _trajectory(poses, "poses", where)
     q = _trajectory(reference, "reference", where)
     _same_length(p, q, "reference", where)
-    angle, translation = _align(p[:, :2], q[:, :2])
-    out = se2.compose([translation[0], translation[1], angle], p)  # R p + t, wrap(theta + phi)
-    return Alignment(angle, _readonly(translation), _readonly(out))
+    alignment, _, _ = _aligned(p, q)
+    return alignment
+
+
+def _aligned(p, q):
+    """``(Alignment, aligned poses scaled, e)``: :func:`align` of ``p`` onto ``q``, computed on
+    positions divided by ``2**e`` so that no sum of products overflows."""
+    e = _exponent(p[:, :2], q[:, :2])
+    ps, qs = _scaled_poses(p, e), _scaled_poses(q, e)
+    angle, ts = _align(ps[:, :2], qs[:, :2])
+    out_s = se2.compose([ts[0], ts[1], angle], ps)  # R p + t, wrap(theta + phi)
+    out = out_s.copy()
+    out[:, :2] = _unscale(out_s[:, :2], e)
+    return Alignment(angle, _readonly(_unscale(ts, e)), _readonly(out)), out_s, e
 
 
 def absolute_trajectory_error(poses, truth, *, align=True):
@@ -520,11 +593,14 @@ def absolute_trajectory_error(poses, truth, *, align=True):
     _same_length(p, q, "truth", where)
     alignment = None
     if do_align:
-        angle, translation = _align(p[:, :2], q[:, :2])
-        p = se2.compose([translation[0], translation[1], angle], p)
-        alignment = Alignment(angle, _readonly(translation), _readonly(p))
+        alignment, ps, e = _aligned(p, q)
+    else:
+        e = _exponent(p[:, :2], q[:, :2])
+        ps = _scaled_poses(p, e)
+    qs = _scaled_poses(q, e)
     # Sturm et al. 2012, ATE: per pose, the error of the aligned estimate against the truth
-    return _summary(p[:, :2] - q[:, :2], se2.wrap_angle(p[:, 2] - q[:, 2]), None, alignment)
+    dtheta = se2.wrap_angle(ps[:, 2] - qs[:, 2])
+    return _summary(ps[:, :2] - qs[:, :2], dtheta, None, alignment, e)
 
 
 def _pairs(pairs, n, where):
@@ -608,7 +684,9 @@ def relative_pose_error(poses, truth, *, pairs=None):
     q = _trajectory(truth, "truth", where)
     _same_length(p, q, "truth", where)
     ij = _pairs(pairs, p.shape[0], where)
+    scale = _exponent(p[:, :2], q[:, :2])  # positions / 2^scale: no difference overflows
+    p, q = _scaled_poses(p, scale), _scaled_poses(q, scale)
     rel_p = se2.between(p[ij[:, 0]], p[ij[:, 1]])  # P_i^-1 P_j
     rel_q = se2.between(q[ij[:, 0]], q[ij[:, 1]])  # Q_i^-1 Q_j
     e = se2.between(rel_q, rel_p)  # Sturm et al. 2012, RPE: (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)
-    return _summary(e[:, :2], e[:, 2], ij, None)
+    return _summary(e[:, :2], e[:, 2], ij, None, scale)

@@ -6,10 +6,14 @@ Every function draws into an Axes (a new one when ``ax`` is None), returns it, a
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
-from .checks import check_bool
-from .errors import OptionError
+from .checks import check_bool, check_int, check_real
+from .errors import GraphError, OptionError, OptionTypeError
+from .graph import PoseGraph, _numeric, _shown, as_graph_poses, check_graph, check_poses
+from .topology import spanning_tree
 
 __all__ = [
     "plot_graph",
@@ -21,12 +25,100 @@ __all__ = [
 ]
 
 
-def _axes(ax):
+def _axes(ax, where):
+    """``ax``, or a new Axes when it is None; anything else is an OptionTypeError."""
     if ax is None:
         import matplotlib.pyplot as plt
 
         _, ax = plt.subplots(figsize=(6, 6))
+        return ax
+    from matplotlib.axes import Axes
+
+    if not isinstance(ax, Axes):
+        raise OptionTypeError(
+            f"{where}: ax must be a matplotlib Axes or None; got {_shown(ax)} (e.g. "
+            "fig, ax = plt.subplots())"
+        )
     return ax
+
+
+def _check_title(title, where):
+    if title is not None and not isinstance(title, str):
+        raise OptionTypeError(f"{where}: title must be text or None; got {_shown(title)}")
+    return title
+
+
+def _check_color(color, name, where):
+    from matplotlib.colors import is_color_like
+
+    if isinstance(color, bool | np.bool_) or not is_color_like(color):
+        raise OptionError(
+            f"{where}: {name} must be a matplotlib colour (a name such as 'C3' or 'tab:red', "
+            f"'#rrggbb', or an RGB(A) tuple of numbers in [0, 1]); got {_shown(color)}"
+        )
+    return color
+
+
+def _check_kw(kw, name, where):
+    """``kw`` if it is None or a mapping with text keys (matplotlib properties)."""
+    if kw is None:
+        return {}
+    if not isinstance(kw, Mapping) or not all(isinstance(k, str) for k in kw):
+        raise OptionTypeError(
+            f"{where}: {name} must be a dict of matplotlib properties (e.g. "
+            f"{{'linewidths': 2}}) or None; got {_shown(kw)}"
+        )
+    return dict(kw)
+
+
+def _drawn(where, what, draw, *args, **kw):
+    """``draw(*args, **kw)``; matplotlib's complaint about a property (an unknown name, a value
+    of the wrong kind) becomes an OptionError naming ``where`` and ``what``."""
+    try:
+        return draw(*args, **kw)
+    except (AttributeError, TypeError, ValueError) as exc:
+        raise OptionError(f"{where}: {what}: matplotlib refused it: {exc}") from None
+
+
+def _points(poses, where, name="poses", columns=(3,)):
+    """``poses`` as a finite float array of shape (k, c) with ``c`` in ``columns``; a single
+    pose of shape (c,) is one row.  GraphTypeError for what is not real numbers, GraphError for
+    a wrong shape or a non-finite row (named)."""
+    p = _numeric(poses, f"{where}: {name}", float)
+    if p.ndim == 1 and p.shape[0] in columns:
+        p = p[None]
+    if p.ndim != 2 or p.shape[1] not in columns:
+        want = " or ".join(f"(k, {c})" for c in columns)
+        raise GraphError(f"{where}: {name} must have shape {want}; got {p.shape}")
+    full = np.zeros((p.shape[0], 3))
+    full[:, : p.shape[1]] = p
+    check_poses(full, None, f"{where}: {name}: pose")
+    return p
+
+
+def _check_highlight(highlight, m, where):
+    """Edge indices (integers in ``0..m-1``) as an int64 array."""
+    if highlight is None:
+        return np.zeros(0, dtype=np.int64)
+    h = _numeric(highlight, f"{where}: highlight", None)
+    if h.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    if (
+        h.ndim > 1
+        or h.dtype.kind not in "iuO"
+        or not all(isinstance(v, int) for v in h.ravel().tolist())
+    ):
+        raise OptionTypeError(
+            f"{where}: highlight must be edge indices (integers); got {_shown(highlight)}"
+        )
+    h = np.atleast_1d(h)
+    out = [v for v in h.tolist() if not 0 <= v < m]
+    if out:
+        raise OptionError(
+            f"{where}: highlight: edge index {out[0]} is out of range (the graph has {m} edges, "
+            f"indices 0..{m - 1})"
+        )
+    return h.astype(np.int64)
 
 
 def _segments(poses, edges):
@@ -163,18 +255,30 @@ def plot_graph(
     Raises
     ------
     OptionError, OptionTypeError
-        ``legend`` is not one of the places above, or ``arrows`` is not a bool.
+        An option of the wrong kind or value (the message names it): ``legend`` not one of the
+        places above, ``arrows`` or ``vertices`` not a bool, ``odometry_kw``/``loop_kw`` not a
+        dict of properties matplotlib accepts, ``ax`` not an Axes.
+    GraphError
+        ``poses`` of the wrong shape or not finite (the message names the vertex).
     """
     from matplotlib.collections import LineCollection
 
-    _check_legend(legend, "plot_graph")
-    arrows = check_bool(arrows, "arrows", "plot_graph")
-    ax = _axes(ax)
-    poses = graph.poses if poses is None else np.asarray(poses, dtype=float)
+    where = "plot_graph"
+    check_graph(graph, where)
+    _check_legend(legend, where)
+    arrows = check_bool(arrows, "arrows", where)
+    vertices = check_bool(vertices, "vertices", where)
+    odometry_kw = _check_kw(odometry_kw, "odometry_kw", where)
+    loop_kw = _check_kw(loop_kw, "loop_kw", where)
+    title = _check_title(title, where)
+    poses = as_graph_poses(graph, poses, f"{where}: poses")
+    ax = _axes(ax, where)
     odo = graph.odometric
     style = {"colors": "tab:blue", "linewidths": 1.0, "label": f"odometric ({int(odo.sum())})"}
-    style.update(odometry_kw or {})
-    ax.add_collection(LineCollection(_segments(poses, graph.edges[odo]), **style))
+    style.update(odometry_kw)
+    lines = _drawn(
+        where, "odometry_kw", LineCollection, _segments(poses, graph.edges[odo]), **style
+    )
     style = {
         "colors": "tab:red",
         "linewidths": 0.6,
@@ -182,11 +286,13 @@ def plot_graph(
         "alpha": 0.8,
         "label": f"loop closures ({int((~odo).sum())})",
     }
-    style.update(loop_kw or {})
-    ax.add_collection(LineCollection(_segments(poses, graph.edges[~odo]), **style))
+    style.update(loop_kw)
+    loops = _drawn(where, "loop_kw", LineCollection, _segments(poses, graph.edges[~odo]), **style)
+    ax.add_collection(lines)
+    ax.add_collection(loops)
     if arrows:
-        _arrowheads(ax, poses, graph.edges[odo], (odometry_kw or {}).get("colors", "tab:blue"))
-        _arrowheads(ax, poses, graph.edges[~odo], (loop_kw or {}).get("colors", "tab:red"))
+        _arrowheads(ax, poses, graph.edges[odo], odometry_kw.get("colors", "tab:blue"))
+        _arrowheads(ax, poses, graph.edges[~odo], loop_kw.get("colors", "tab:red"))
     if vertices:
         ax.plot(poses[:, 0], poses[:, 1], ".", color="k", markersize=2)
     return _finish(ax, title, legend)
@@ -211,7 +317,9 @@ def plot_spanning_tree(
     Parameters
     ----------
     graph : PoseGraph
-    tree : lagolib.topology.SpanningTree
+    tree : lagolib.topology.SpanningTree or {"min_uncertainty", "odometric", "bfs"}
+        The tree to draw (checked against the graph), or the name of one to build
+        (:func:`lagolib.topology.spanning_tree`).
     poses : array_like, shape (n, 3), optional
         Where to draw the vertices; default ``graph.poses``.
     ax : matplotlib.axes.Axes, optional
@@ -234,14 +342,24 @@ def plot_spanning_tree(
     Raises
     ------
     OptionError, OptionTypeError
-        ``legend`` is not one of the places above, or ``arrows`` is not a bool.
+        An option of the wrong kind or value (the message names it): ``legend`` not one of the
+        places above, ``arrows`` or ``labels`` not a bool, ``highlight`` not edge indices of the
+        graph, ``ax`` not an Axes.
+    GraphError
+        ``poses`` of the wrong shape or not finite, or a tree of another graph.
     """
     from matplotlib.collections import LineCollection
 
-    _check_legend(legend, "plot_spanning_tree")
-    arrows = check_bool(arrows, "arrows", "plot_spanning_tree")
-    ax = _axes(ax)
-    poses = graph.poses if poses is None else np.asarray(poses, dtype=float)
+    where = "plot_spanning_tree"
+    check_graph(graph, where)
+    tree = spanning_tree(graph, tree)  # a name builds one; a given tree is checked against graph
+    _check_legend(legend, where)
+    arrows = check_bool(arrows, "arrows", where)
+    labels = check_bool(labels, "labels", where)
+    title = _check_title(title, where)
+    h = _check_highlight(highlight, graph.m, where)
+    poses = as_graph_poses(graph, poses, f"{where}: poses")
+    ax = _axes(ax, where)
     t = np.asarray(tree.in_tree, dtype=bool)
     ax.add_collection(
         LineCollection(
@@ -260,8 +378,7 @@ def plot_spanning_tree(
             label=f"chords ({int((~t).sum())})",
         )
     )
-    if highlight is not None and len(highlight):
-        h = np.asarray(highlight, dtype=np.int64)
+    if h.size:
         ax.add_collection(
             LineCollection(
                 _segments(poses, graph.edges[h]),
@@ -303,18 +420,28 @@ def plot_trajectories(trajectories, ax=None, *, title=None, legend="best", **kw)
     -------
     matplotlib.axes.Axes
     """
-    _check_legend(legend, "plot_trajectories")
-    ax = _axes(ax)
+    where = "plot_trajectories"
+    _check_legend(legend, where)
+    title = _check_title(title, where)
+    if not isinstance(trajectories, Mapping):
+        raise OptionTypeError(
+            f"{where}: trajectories must be a dict of label -> poses (or PoseGraph); got "
+            f"{_shown(trajectories)}, e.g. {{'odometry': graph, 'truth': truth}}"
+        )
+    lines = []
     for label, value in trajectories.items():
-        if hasattr(value, "poses") and hasattr(value, "order"):
+        if isinstance(value, PoseGraph):
             poses = value.poses[np.argsort(value.ids, kind="stable")]
         else:
-            poses = np.asarray(value, dtype=float)
-        ax.plot(poses[:, 0], poses[:, 1], label=label, **kw)
+            poses = _points(value, where, f"trajectories[{label!r}]", columns=(2, 3))
+        lines.append((label, poses))
+    ax = _axes(ax, where)
+    for label, poses in lines:
+        _drawn(where, "**kw", ax.plot, poses[:, 0], poses[:, 1], label=str(label), **kw)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    _legend(ax, legend)
+    _legend(ax, legend if lines else None)  # nothing drawn: no (empty) legend
     if title:
         ax.set_title(title)
     return ax
@@ -339,16 +466,42 @@ def plot_poses(poses, ax=None, *, length=None, labels=None, color="k", **kw):
     -------
     matplotlib.axes.Axes
     """
-    ax = _axes(ax)
-    p = np.atleast_2d(np.asarray(poses, dtype=float))
+    where = "plot_poses"
+    p = _points(poses, where)
     if length is None:
-        extent = np.ptp(p[:, :2], axis=0).max() if len(p) > 1 else 1.0
+        with np.errstate(over="ignore"):
+            extent = np.ptp(p[:, :2], axis=0).max() if len(p) > 1 else 1.0
+        if not np.isfinite(extent):  # positions near ±1.8e308: the spread itself overflows
+            extent = np.max(np.abs(p[:, :2]))
         length = max(0.1 * extent, 0.2)
-    ax.quiver(
+    else:
+        length = check_real(length, "length", where, minimum=0.0, strict=True)
+    if labels is not None:
+        try:
+            texts = None if isinstance(labels, str | bytes) else list(labels)
+        except TypeError:
+            texts = None
+        if texts is None or not all(isinstance(t, str) for t in texts):
+            raise OptionTypeError(
+                f"{where}: labels must be a list of text, one per pose; got {_shown(labels)}"
+            )
+        labels = texts
+        if len(labels) != len(p):
+            raise OptionError(f"{where}: {len(p)} poses but {len(labels)} labels")
+    color = _check_color(color, "color", where)
+    ax = _axes(ax, where)
+    with np.errstate(over="ignore"):  # an arrow beyond float64 is refused below
+        u, v = length * np.cos(p[:, 2]), length * np.sin(p[:, 2])
+    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(v))):
+        raise OptionError(f"{where}: length {length!r} overflows float64 in the arrows")
+    _drawn(
+        where,
+        "**kw",
+        ax.quiver,
         p[:, 0],
         p[:, 1],
-        length * np.cos(p[:, 2]),
-        length * np.sin(p[:, 2]),
+        u,
+        v,
         angles="xy",
         scale_units="xy",
         scale=1,
@@ -371,6 +524,7 @@ def covariance_ellipse(cov, n_sigma=3.0):
     cov : array_like, shape (..., 2, 2) or (..., 3, 3)
         Only the top-left 2x2 block is used.
     n_sigma : float
+        Positive.
 
     Returns
     -------
@@ -387,13 +541,72 @@ def covariance_ellipse(cov, n_sigma=3.0):
     >>> float(w), float(h), float(a)
     (4.0, 2.0, 0.0)
     """
-    cov = np.asarray(cov, dtype=float)[..., :2, :2]
-    vals, vecs = np.linalg.eigh(cov)
+    where = "covariance_ellipse"
+    n_sigma = check_real(n_sigma, "n_sigma", where, minimum=0.0, strict=True)
+    return _ellipses(_position_blocks(cov, where, "cov"), n_sigma, where)
+
+
+def _position_blocks(cov, where, name):
+    """The symmetric ``(x, y)`` blocks of covariances, shape (..., 2, 2), checked.
+
+    ``cov`` must be real and finite, of shape (..., 2, 2) or (..., 3, 3), with a symmetric
+    positive semi-definite ``(x, y)`` block — up to rounding: an asymmetry or a negative
+    eigenvalue below ``1e-8`` of the matrix's largest entry (or of a millionth of the largest
+    entry of all of them, for matrices that are zero up to rounding, such as a fixed pose's).
+    """
+    c = _numeric(cov, f"{where}: {name}", float)
+    if c.ndim < 2 or c.shape[-2:] not in ((2, 2), (3, 3)):
+        raise OptionError(
+            f"{where}: {name} must be covariance matrices, shape (..., 2, 2) or (..., 3, 3); got "
+            f"shape {c.shape}"
+        )
+    c = c[..., :2, :2].reshape(-1, 2, 2)
+    bad = np.flatnonzero(~np.all(np.isfinite(c), axis=(1, 2)))
+    if bad.size:
+        raise OptionError(
+            f"{where}: {name}: matrix {int(bad[0])} is not finite: {c[bad[0]].tolist()}"
+        )
+    own = np.max(np.abs(c), axis=(1, 2), initial=0.0)
+    tol = 1e-8 * np.maximum(own, 1e-6 * np.max(own, initial=0.0))
+    asym = np.abs(c[:, 0, 1] - c[:, 1, 0])
+    unit = np.where(own > 0, own, 1.0)[:, None, None]
+    sym = 0.5 * (c / unit + np.swapaxes(c / unit, 1, 2))  # entries in [-1, 1]: no overflow
+    lo = np.linalg.eigvalsh(sym)[:, 0] * unit[:, 0, 0]
+    bad = np.flatnonzero((asym > tol) | (lo < -tol))
+    if bad.size:
+        k = int(bad[0])
+        what = (
+            "not symmetric"
+            if asym[k] > tol[k]
+            else f"not positive semi-definite (eigenvalue {lo[k]:.3g})"
+        )
+        raise OptionError(
+            f"{where}: {name}: the (x, y) block of matrix {k} is {what}: {c[k].tolist()}; a "
+            "covariance is symmetric positive semi-definite"
+        )
+    sym = 0.5 * c + 0.5 * np.swapaxes(c, 1, 2)  # halves first: no overflow near 1.8e308
+    return sym.reshape(np.shape(cov)[:-2] + (2, 2))
+
+
+def _ellipses(blocks, n_sigma, where):
+    """Full axes and major-axis angle of checked ``(x, y)`` blocks (computed without overflow:
+    the eigenvalues of each block divided by its largest entry)."""
+    scale = np.max(np.abs(blocks), axis=(-2, -1))
+    unit = np.where(scale > 0, scale, 1.0)
+    vals, vecs = np.linalg.eigh(blocks / unit[..., None, None])
     vals = np.clip(vals, 0.0, None)
     major = vecs[..., :, 1]
     angle = np.degrees(np.arctan2(major[..., 1], major[..., 0]))
     angle = np.where(angle > 90, angle - 180, np.where(angle <= -90, angle + 180, angle))
-    return 2 * n_sigma * np.sqrt(vals[..., 1]), 2 * n_sigma * np.sqrt(vals[..., 0]), angle + 0.0
+    with np.errstate(over="ignore"):
+        root = 2 * n_sigma * np.sqrt(unit)
+        width, height = root * np.sqrt(vals[..., 1]), root * np.sqrt(vals[..., 0])
+    if not np.all(np.isfinite(width)):
+        raise OptionError(
+            f"{where}: the {n_sigma!r}-sigma ellipse is beyond float64 (n_sigma times a standard "
+            "deviation exceeds 1.8e308); choose a smaller n_sigma"
+        )
+    return width, height, angle + 0.0
 
 
 def plot_covariance_ellipses(
@@ -403,7 +616,7 @@ def plot_covariance_ellipses(
 
     Parameters
     ----------
-    poses : array_like, shape (k, 3)
+    poses : array_like, shape (k, 3) or (k, 2)
         Centres (only ``x, y`` are used).
     covariances : array_like, shape (k, 3, 3) or (k, 2, 2)
         World-frame covariances, e.g. from :func:`lagolib.uncertainty.marginal_covariances`;
@@ -412,7 +625,7 @@ def plot_covariance_ellipses(
     n_sigma : float
         Scale of the ellipses (3: 98.9 % of a 2D Gaussian's mass inside).
     every : int
-        Draw every ``every``-th ellipse.
+        Draw every ``every``-th ellipse (``>= 1``).
     color : color
     **kw
         Passed to :class:`matplotlib.collections.EllipseCollection`.
@@ -420,19 +633,48 @@ def plot_covariance_ellipses(
     Returns
     -------
     matplotlib.axes.Axes
+
+    Raises
+    ------
+    OptionError, OptionTypeError
+        ``n_sigma`` not a positive number, ``every`` not a positive integer, a colour matplotlib
+        does not know, ``ax`` not an Axes, covariances that are not finite symmetric positive
+        semi-definite (the message names the matrix), or not one per pose.
+    GraphError
+        ``poses`` of the wrong shape or not finite (the message names the row).
     """
     from matplotlib.collections import EllipseCollection
 
-    ax = _axes(ax)
-    p = np.atleast_2d(np.asarray(poses, dtype=float))[::every]
-    cov = np.asarray(covariances, dtype=float)[::every]
-    if len(p) != len(cov):
-        raise ValueError(f"{len(p)} poses but {len(cov)} covariances")
-    w, h, a = covariance_ellipse(cov, n_sigma)
+    where = "plot_covariance_ellipses"
+    n_sigma = check_real(n_sigma, "n_sigma", where, minimum=0.0, strict=True)
+    every = check_int(every, "every", where, minimum=1)
+    color = _check_color(color, "color", where)
+    p = _points(poses, where, columns=(2, 3))
+    cov = _position_blocks(covariances, where, "covariances")
+    if cov.ndim == 2:
+        cov = cov[None]
+    if cov.ndim != 3 or len(p) != len(cov):
+        raise OptionError(
+            f"{where}: {len(p)} poses but {len(cov) if cov.ndim == 3 else cov.shape} "
+            "covariances; give one covariance per pose"
+        )
+    p, cov = p[::every], cov[::every]
+    w, h, a = _ellipses(cov, n_sigma, where)
+    ax = _axes(ax, where)
     kw.setdefault("facecolors", "none")
     kw.setdefault("linewidths", 0.8)
-    coll = EllipseCollection(
-        w, h, a, units="xy", offsets=p[:, :2], offset_transform=ax.transData, edgecolors=color, **kw
+    coll = _drawn(
+        where,
+        "**kw",
+        EllipseCollection,
+        w,
+        h,
+        a,
+        units="xy",
+        offsets=p[:, :2],
+        offset_transform=ax.transData,
+        edgecolors=color,
+        **kw,
     )
     ax.add_collection(coll)
     ax.update_datalim(np.concatenate([p[:, :2] + w[:, None] / 2, p[:, :2] - w[:, None] / 2]))

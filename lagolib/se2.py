@@ -24,9 +24,12 @@ Angles given to lagolib (in files and in a :class:`~lagolib.PoseGraph`) must sat
 spacing of float64 numbers at ``1e9`` is 1.2e-7 rad, and the two reductions lagolib relies on —
 :func:`wrap_angle` (modulo the float64 value of ``2 pi``) and the exact reduction inside ``cos`` /
 ``sin`` — already disagree by up to 7e-8 rad there (4.8e-5 rad at 1e12, 0.06 rad at 1e15).
-Arrays of complex numbers are rejected with a :class:`~lagolib.errors.GraphTypeError` (a
-:class:`TypeError`) instead of losing their imaginary
-part.
+Every function checks its arguments before computing: complex numbers (which numpy would convert
+by dropping their imaginary part), text, booleans, ``None`` and other non-numbers raise
+:class:`~lagolib.errors.OptionTypeError` (a :class:`TypeError`); a wrong last dimension or
+arguments that do not broadcast against each other raise :class:`~lagolib.errors.OptionError`
+(a :class:`ValueError`) — each message names the function and the argument.  Values are not
+checked: IEEE arithmetic carries a NaN or an infinity through to the result.
 
 Examples
 --------
@@ -42,9 +45,11 @@ array([1., 0., 0.])
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
-from .errors import GraphTypeError
+from .errors import OptionError, OptionTypeError
 
 __all__ = [
     "MAX_ANGLE",
@@ -68,12 +73,59 @@ MAX_ANGLE = 1e9
 """Largest ``|theta|`` (rad) lagolib accepts in a file or a pose graph (module docstring)."""
 
 
-def _real(a, name):
-    """``np.asarray(a, dtype=float)``, refusing complex input instead of dropping its imaginary part."""
-    arr = np.asarray(a)
-    if arr.dtype.kind == "c":
-        raise GraphTypeError(f"{name} must be real; got a complex array (dtype {arr.dtype})")
-    return np.asarray(arr, dtype=float)
+_KINDS = {"c": "complex", "U": "text", "S": "text", "b": "bool", "M": "date", "m": "time delta"}
+
+
+def _real(a, name, where="se2"):
+    """``a`` as a float ndarray; complex, text, bool, None and other non-numbers are refused.
+
+    numpy would drop an imaginary part (with a warning), parse text and turn ``True`` into 1 and
+    ``None`` into NaN: each is an :class:`~lagolib.errors.OptionTypeError` naming ``where`` and
+    ``name`` instead.
+    """
+    try:
+        arr = np.asarray(a)
+    except (TypeError, ValueError) as exc:  # ragged nesting
+        raise OptionError(f"{where}: {name} must be a numeric array: {exc}") from None
+    kind = arr.dtype.kind
+    if kind in "iuf":
+        return arr.astype(float, copy=False)
+    if kind == "O":
+        for x in arr.ravel().tolist():
+            if isinstance(x, complex | np.complexfloating):
+                kind = "c"
+                break
+            if isinstance(x, bool | np.bool_) or not isinstance(x, numbers.Real):
+                raise OptionTypeError(
+                    f"{where}: {name} must hold real numbers; it holds {x!r} ({type(x).__name__})"
+                )
+        else:
+            try:
+                return arr.astype(float)
+            except (TypeError, ValueError, OverflowError) as exc:
+                raise OptionError(f"{where}: {name} must hold real numbers: {exc}") from None
+    if kind == "c":
+        raise OptionTypeError(
+            f"{where}: {name} must be real; got a complex array (dtype {arr.dtype}): numpy would "
+            "drop the imaginary part"
+        )
+    raise OptionTypeError(
+        f"{where}: {name} must be an array of real numbers; got a "
+        f"{_KINDS.get(kind, 'non-numeric')} array (dtype {arr.dtype})"
+    )
+
+
+def _broadcast(where, *named):
+    """Raise OptionError unless the arrays ``named`` (``(name, array, trailing dims)``) broadcast
+    against each other in their leading dimensions."""
+    try:
+        np.broadcast_shapes(*(a.shape[: a.ndim - k] for _, a, k in named))
+    except ValueError:
+        shapes = ", ".join(f"{name} {a.shape}" for name, a, _ in named)
+        raise OptionError(
+            f"{where}: the arguments do not broadcast against each other: {shapes} (stacks of "
+            "poses must have equal leading shapes, or one of them 1)"
+        ) from None
 
 
 def wrap_angle(theta):
@@ -99,7 +151,7 @@ def wrap_angle(theta):
     >>> float(wrap_angle(1e-300)) == 1e-300   # inside the interval: untouched, every digit kept
     True
     """
-    theta = _real(theta, "theta")
+    theta = _real(theta, "theta", "se2.wrap_angle")
     outside = (theta > np.pi) | (theta <= -np.pi)
     if not np.any(outside):
         return theta.copy()
@@ -118,15 +170,17 @@ def rotation(theta):
     -------
     ndarray, shape (..., 2, 2)
     """
-    theta = _real(theta, "theta")
+    theta = _real(theta, "theta", "se2.rotation")
     c, s = np.cos(theta), np.sin(theta)
     return np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
 
 
-def _as_poses(p, name="pose"):
-    p = _real(p, name)
+def _as_poses(p, name="pose", where="se2"):
+    p = _real(p, name, where)
     if p.shape[-1:] != (3,):
-        raise ValueError(f"{name} must have shape (..., 3) as (x, y, theta); got shape {p.shape}")
+        raise OptionError(
+            f"{where}: {name} must have shape (..., 3) as (x, y, theta); got shape {p.shape}"
+        )
     return p
 
 
@@ -143,7 +197,7 @@ def v2t(p):
     ndarray, shape (..., 3, 3)
         ``[[cos, -sin, x], [sin, cos, y], [0, 0, 1]]``.
     """
-    p = _as_poses(p)
+    p = _as_poses(p, "p", "se2.v2t")
     T = np.zeros(p.shape[:-1] + (3, 3))
     T[..., :2, :2] = rotation(p[..., 2])
     T[..., :2, 2] = p[..., :2]
@@ -164,9 +218,9 @@ def t2v(T):
     ndarray, shape (..., 3)
         ``(T[0, 2], T[1, 2], atan2(T[1, 0], T[0, 0]))``; the angle is in ``(-pi, pi]``.
     """
-    T = _real(T, "T")
-    if T.shape[-2:] != (3, 3):
-        raise ValueError(f"T must have shape (..., 3, 3); got shape {T.shape}")
+    T = _real(T, "T", "se2.t2v")
+    if T.ndim < 2 or T.shape[-2:] != (3, 3):
+        raise OptionError(f"se2.t2v: T must have shape (..., 3, 3); got shape {T.shape}")
     theta = wrap_angle(np.arctan2(T[..., 1, 0], T[..., 0, 0]))
     return np.stack([T[..., 0, 2], T[..., 1, 2], theta], axis=-1)
 
@@ -185,7 +239,8 @@ def compose(a, b):
     -------
     ndarray, shape (..., 3)
     """
-    a, b = _as_poses(a, "a"), _as_poses(b, "b")
+    a, b = _as_poses(a, "a", "se2.compose"), _as_poses(b, "b", "se2.compose")
+    _broadcast("se2.compose", ("a", a, 1), ("b", b, 1))
     c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
     x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
     y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
@@ -203,7 +258,7 @@ def inverse(p):
     -------
     ndarray, shape (..., 3)
     """
-    p = _as_poses(p)
+    p = _as_poses(p, "p", "se2.inverse")
     c, s = np.cos(p[..., 2]), np.sin(p[..., 2])
     x = -(c * p[..., 0] + s * p[..., 1])
     y = -(-s * p[..., 0] + c * p[..., 1])
@@ -229,7 +284,8 @@ def between(p_i, p_j):
     -------
     ndarray, shape (..., 3)
     """
-    p_i, p_j = _as_poses(p_i, "p_i"), _as_poses(p_j, "p_j")
+    p_i, p_j = _as_poses(p_i, "p_i", "se2.between"), _as_poses(p_j, "p_j", "se2.between")
+    _broadcast("se2.between", ("p_i", p_i, 1), ("p_j", p_j, 1))
     c, s = np.cos(p_i[..., 2]), np.sin(p_i[..., 2])
     dx = p_j[..., 0] - p_i[..., 0]
     dy = p_j[..., 1] - p_i[..., 1]
@@ -247,7 +303,7 @@ _SMALL = 1e-2
 
 def _half_cot(theta):
     """``c = h cot h`` with ``h = theta/2``, and ``dc/dtheta``; both smooth through 0."""
-    h = 0.5 * _real(theta, "theta")
+    h = 0.5 * np.asarray(theta, dtype=float)  # callers checked it
     small = np.abs(h) < _SMALL
     hs = np.where(small, 1.0, h)  # keeps the closed forms finite where the series is used
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -287,7 +343,7 @@ def log(p):
     >>> np.allclose(se2.log(se2.exp(v)), v)
     True
     """
-    p = _as_poses(p)
+    p = _as_poses(p, "p", "se2.log")
     theta = wrap_angle(p[..., 2])
     c, _ = _half_cot(theta)
     h = 0.5 * theta
@@ -310,7 +366,7 @@ def exp(v):
     -------
     ndarray, shape (..., 3)
     """
-    v = _as_poses(v, "v")
+    v = _as_poses(v, "v", "se2.exp")
     t = v[..., 2]
     small = np.abs(t) < _SMALL
     ts = np.where(small, 1.0, t)
@@ -339,7 +395,7 @@ def log_jacobian(p):
     -------
     ndarray, shape (..., 3, 3)
     """
-    p = _as_poses(p)
+    p = _as_poses(p, "p", "se2.log_jacobian")
     theta = wrap_angle(p[..., 2])
     c, dc = _half_cot(theta)
     h = 0.5 * theta
@@ -354,11 +410,24 @@ def log_jacobian(p):
 # --------------------------------------------------------------------------- information frames
 def _frame_rotations(theta_z):
     """``G = blockdiag(R(θ_z), 1)`` per measurement, shape (m, 3, 3)."""
-    theta_z = _real(theta_z, "theta_z")
+    theta_z = np.asarray(theta_z, dtype=float)  # checked by the callers
     G = np.zeros(theta_z.shape + (3, 3))
     G[..., :2, :2] = rotation(theta_z)
     G[..., 2, 2] = 1.0
     return G
+
+
+def _information_args(information, theta_z, where):
+    """Checked ``(information (..., 3, 3), theta_z (...))`` that broadcast against each other."""
+    information = _real(information, "information", where)
+    theta_z = _real(theta_z, "theta_z", where)
+    if information.ndim < 2 or information.shape[-2:] != (3, 3):
+        raise OptionError(
+            f"{where}: information must have shape (m, 3, 3), one 3x3 matrix per measurement; got "
+            f"shape {information.shape}"
+        )
+    _broadcast(where, ("information", information, 2), ("theta_z", theta_z, 0))
+    return information, theta_z
 
 
 def information_to_frame_i(information, theta_z):
@@ -391,8 +460,9 @@ def information_to_frame_i(information, theta_z):
            [  0., 100.,   0.],
            [  0.,   0.,  10.]])
     """
+    information, theta_z = _information_args(information, theta_z, "se2.information_to_frame_i")
     G = _frame_rotations(theta_z)
-    return G @ _real(information, "information") @ np.swapaxes(G, -1, -2)
+    return G @ information @ np.swapaxes(G, -1, -2)
 
 
 def information_from_frame_i(information, theta_z):
@@ -412,5 +482,6 @@ def information_from_frame_i(information, theta_z):
     ndarray, shape (m, 3, 3)
         Information in the g2o frame.
     """
+    information, theta_z = _information_args(information, theta_z, "se2.information_from_frame_i")
     G = _frame_rotations(theta_z)
-    return np.swapaxes(G, -1, -2) @ _real(information, "information") @ G
+    return np.swapaxes(G, -1, -2) @ information @ G

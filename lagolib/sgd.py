@@ -73,8 +73,8 @@ from scipy.sparse.csgraph import depth_first_order
 
 from . import se2
 from .checks import check_bool, check_callback, check_int
-from .errors import GraphError, OptionError, OptionTypeError
-from .graph import PoseGraph, as_graph_poses, chi2
+from .errors import GraphError, OptionError
+from .graph import PoseGraph, as_graph_poses, check_graph, chi2
 from .topology import SpanningTree, _anchor_row, spanning_tree
 
 __all__ = ["SGDResult", "TreeParameterization", "sgd", "sgd_reference"]
@@ -143,6 +143,7 @@ def tree_parameterization(graph, tree="bfs", anchor=None):
     -------
     TreeParameterization
     """
+    _anchor_row(graph, anchor, "tree_parameterization")  # the graph, and one vertex id or None
     if isinstance(tree, SpanningTree):
         t = spanning_tree(graph, tree)  # checks a given tree against the graph
         _check_anchor(graph, t, anchor, "tree_parameterization")
@@ -411,8 +412,8 @@ class SGDResult:
 
 
 def _setup(graph, initial, iterations, tree, anchor, callback, verbose, where):
-    if not isinstance(graph, PoseGraph):
-        raise OptionTypeError(f"{where}: graph must be a PoseGraph; got {type(graph).__name__}")
+    check_graph(graph, where)
+    _anchor_row(graph, anchor, where)  # one vertex id of the graph, or None
     iterations = check_int(iterations, "iterations", where, minimum=0)
     check_callback(callback, "callback", where)
     verbose = check_bool(verbose, "verbose", where)
@@ -430,9 +431,54 @@ def _setup(graph, initial, iterations, tree, anchor, callback, verbose, where):
     return iterations, verbose, p, par
 
 
+#: Positions and measured translations beyond ``2**_SCALE_ABOVE`` (about 1e77) are scaled down.
+_SCALE_ABOVE = 256
+
+
+def _scaled(graph, p):
+    """``(graph, p, k)`` with translations divided by ``2**k`` when they are huge, else ``k = 0``.
+
+    SGD's translational updates are linear in the translations (the step fractions depend on the
+    information and the orientations only), so running on ``2**-k`` times the positions and
+    measured translations and multiplying back is exact — while near ±1e308 the differences
+    ``p_k − p_parent(k)``, the residuals and their products with the step sizes would overflow
+    to ``inf`` and NaN.  :mod:`lagolib.metrics` scales the same way.  One O(n + m) pass.
+    """
+    big = max(
+        np.max(np.abs(p[:, :2]), initial=0.0),
+        np.max(np.abs(graph.measurements[:, :2]), initial=0.0),
+    )
+    if big < 2.0**_SCALE_ABOVE:
+        return graph, p, 0
+    k = int(np.frexp(big)[1])
+    p = p.copy()
+    p[:, :2] = np.ldexp(p[:, :2], -k)
+    return graph._scaled_translations(k), p, k
+
+
+def _unscaled(graph, p, k, where):
+    """Poses ``p`` of the scaled problem back in the graph's units; a GraphError names the first
+    vertex whose position is beyond float64."""
+    if k == 0:
+        return p
+    out = p.copy()
+    with np.errstate(over="ignore"):
+        out[:, :2] = np.ldexp(p[:, :2], k)
+    bad = np.flatnonzero(~np.all(np.isfinite(out), axis=1))
+    if bad.size:
+        v = int(bad[0])
+        raise GraphError(
+            f"{where}: the iterate left float64's range: vertex id {graph.ids[v]} reached "
+            f"position {out[v, :2].tolist()}; the poses are too close to ±1.8e308 — move the "
+            "map towards the origin",
+            vertex=v,
+        )
+    return out
+
+
 def _check_anchor(graph, tree, anchor, where):
     """A given tree is rooted at its own anchor: an ``anchor`` that differs is a misuse."""
-    if anchor is not None and tree.root != _anchor_row(graph, anchor):
+    if anchor is not None and tree.root != _anchor_row(graph, anchor, where):
         raise OptionError(
             f"{where}: anchor={anchor!r} differs from the root of the given tree (vertex id "
             f"{graph.ids[tree.root]}); leave anchor out, or build the tree from that anchor"
@@ -510,26 +556,28 @@ def sgd(
     iterations, verbose, p, par = _setup(
         graph, initial, iterations, tree, anchor, callback, verbose, "sgd"
     )
+    history = check_bool(history, "history", "sgd")
+    work, p, k = _scaled(graph, p)  # far from float64's limits (k = 0: nothing to do)
     root_pose = p[par.tree.root].copy()
     x = _to_parameters(par, p)
     rounds = _rounds(_tree_paths(graph, par), _processing_order(par))
     gamma = _learning_rate_scale(graph)
-    chis, per_iteration = [chi2(graph, p)], []
-    history = check_bool(history, "history", "sgd")
+    chis, per_iteration = [chi2(graph, _unscaled(graph, p, k, "sgd"))], []
     t_setup = time.perf_counter() - t0
     for t in range(1, iterations + 1):
         ti = time.perf_counter()
-        _iterate(graph, par, rounds, x, t, gamma, root_pose[2])
+        _iterate(work, par, rounds, x, t, gamma, root_pose[2])
         p = _to_poses(par, x, root_pose)
         if history or verbose or t == iterations:
-            chis.append(chi2(graph, p))
+            chis.append(chi2(graph, _unscaled(graph, p, k, "sgd")))
         per_iteration.append(time.perf_counter() - ti)
         if verbose:
             print(f"iter {t:4d}  chi2 {chis[-1]:.10g}")
         if callback is not None:
-            callback(t, _wrapped(p))
+            callback(t, _wrapped(_unscaled(graph, p, k, "sgd")))
     timings = {"setup": t_setup, "iterations": per_iteration, "total": time.perf_counter() - t0}
-    return SGDResult(_wrapped(p), chis[-1], chis, iterations, par, graph, timings)
+    poses = _wrapped(_unscaled(graph, p, k, "sgd"))
+    return SGDResult(poses, chis[-1], chis, iterations, par, graph, timings)
 
 
 def _wrap(angle):
@@ -559,7 +607,8 @@ def sgd_reference(graph, initial=None, *, iterations=100, tree="bfs", anchor=Non
     iterations, _, p, par = _setup(
         graph, initial, iterations, tree, anchor, None, False, "sgd_reference"
     )
-    n, e, z = graph.n, graph.edges, graph.measurements
+    work, p, scale = _scaled(graph, p)  # far from float64's limits (0: nothing to do)
+    n, e, z = graph.n, graph.edges, work.measurements
     subtree = [par.preorder[par.start[k] : par.end[k]] for k in range(n)]
     gamma = _learning_rate_scale(graph)
     paths = _tree_paths(graph, par)
@@ -583,4 +632,4 @@ def sgd_reference(graph, initial=None, *, iterations=100, tree="bfs", anchor=Non
             r = p[a, :2] + se2.rotation(theta_a[c]) @ z[c, :2] - p[b, :2]
             for k, s in paths[c]:
                 p[subtree[k], :2] += s * f[c][:2] * r / M[k, :2] / S[c][:2]
-    return _wrapped(p)
+    return _wrapped(_unscaled(graph, p, scale, "sgd_reference"))

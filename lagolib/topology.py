@@ -30,8 +30,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, dijkstra
 
+from .checks import check_int
 from .errors import GraphError, OptionError, OptionTypeError
-from .graph import vertex_rows
+from .graph import _numeric, check_graph, vertex_row
 
 __all__ = [
     "incidence_matrix",
@@ -77,6 +78,7 @@ def incidence_matrix(graph):
            [ 1, -1,  0],
            [ 0,  1,  1]])
     """
+    check_graph(graph, "incidence_matrix")
     e, m = graph.edges, graph.m
     rows = np.concatenate([e[:, 0], e[:, 1]])
     cols = np.concatenate([np.arange(m), np.arange(m)])
@@ -85,13 +87,17 @@ def incidence_matrix(graph):
     return sp.csr_matrix((vals, (rows, cols)), shape=(graph.n, m))
 
 
-def _anchor_row(graph, anchor):
-    if graph.n == 0:
-        raise GraphError("the graph has no vertices")
+def _anchor_row(graph, anchor, where=None):
+    """Row of the vertex id ``anchor`` (default: the smallest id), checked to be one id
+    (:func:`lagolib.graph.vertex_row`); ``where`` names the caller in the messages."""
+    if where is not None:
+        check_graph(graph, where)
+    head = f"{where}: " if where else ""
     if anchor is None:
+        if graph.n == 0:
+            raise GraphError(f"{head}the graph has no vertices, so there is no anchor")
         return int(np.argmin(graph.ids))
-    (row,) = vertex_rows(graph, [anchor], "anchor")
-    return int(row)
+    return vertex_row(graph, anchor, f"{head}anchor")
 
 
 def reduced_incidence_matrix(graph, anchor=None):
@@ -113,7 +119,7 @@ def reduced_incidence_matrix(graph, anchor=None):
     For a connected graph 𝒜 has rank ``graph.n - 1`` and ``A`` has full row rank (Prop. 1), so
     ``A P_delta^-1 A^T`` is positive definite.
     """
-    row = _anchor_row(graph, anchor)
+    row = _anchor_row(graph, anchor, "reduced_incidence_matrix")
     keep = np.delete(np.arange(graph.n), row)
     return incidence_matrix(graph)[keep]
 
@@ -142,7 +148,14 @@ def position_incidence_matrix(A):
            [ 1,  0],
            [ 0,  1]])
     """
-    return sp.kron(sp.csr_matrix(A), sp.identity(2), format="csr")
+    where = "position_incidence_matrix"
+    if not sp.issparse(A):
+        A = _numeric(A, f"{where}: A", float)
+    elif A.dtype.kind not in "iuf":
+        raise OptionTypeError(f"{where}: A must hold real numbers; got dtype {A.dtype}")
+    if A.ndim != 2:
+        raise OptionError(f"{where}: A must be a matrix (2-D), shape (r, m); got shape {A.shape}")
+    return sp.kron(sp.csr_matrix(A, dtype=float), sp.identity(2), format="csr")
 
 
 # --------------------------------------------------------------------------- spanning trees
@@ -210,7 +223,12 @@ class SpanningTree:
         -------
         ndarray, shape (graph.n,)
         """
-        values = np.asarray(values, dtype=float)
+        values = _numeric(values, "SpanningTree.potentials: values", float)
+        if values.shape != self.in_tree.shape:
+            raise OptionError(
+                f"SpanningTree.potentials: values must have one entry per edge, shape "
+                f"{self.in_tree.shape}; got {values.shape}"
+            )
         local = np.zeros(self.parent.size)
         child = np.flatnonzero(self.parent_edge >= 0)
         local[child] = np.where(self.down[child], 1.0, -1.0) * values[self.parent_edge[child]]
@@ -226,8 +244,10 @@ class SpanningTree:
         signs : ndarray of float
             +1 where an edge is walked from its tail to its head, −1 otherwise.
         """
+        last = self.parent.size - 1
+        a = check_int(u, "u", "SpanningTree.path", minimum=0, maximum=last)
+        b = check_int(v, "v", "SpanningTree.path", minimum=0, maximum=last)
         up_u, up_v = [], []
-        a, b = int(u), int(v)
         while self.depth[a] > self.depth[b]:
             up_u.append(a)
             a = int(self.parent[a])
@@ -325,7 +345,7 @@ def odometric_tree(graph, anchor=None):
     GraphError
         If a consecutive pair has no edge (the odometric chain is broken): use :func:`bfs_tree`.
     """
-    root = _anchor_row(graph, anchor)
+    root = _anchor_row(graph, anchor, "odometric_tree")
     if not graph.is_connected:
         raise _disconnected(graph)
     try:
@@ -357,7 +377,7 @@ def bfs_tree(graph, anchor=None):
     GraphError
         If the graph is not connected.
     """
-    root = _anchor_row(graph, anchor)
+    root = _anchor_row(graph, anchor, "bfs_tree")
     n, e = graph.n, graph.edges
     a, b = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
     key = a * n + b
@@ -398,7 +418,13 @@ def spanning_tree(graph, tree="odometric", anchor=None):
     Returns
     -------
     SpanningTree
+
+    Notes
+    -----
+    A given :class:`SpanningTree` keeps its own root; ``anchor`` is still checked to be a vertex
+    id of the graph.
     """
+    _anchor_row(graph, anchor, "spanning_tree")  # the graph, and one vertex id (or None)
     if isinstance(tree, SpanningTree):
         if tree.in_tree.size != graph.m or tree.parent.size != graph.n:
             raise GraphError(
@@ -442,6 +468,7 @@ def orientation_variances(graph):
     -------
     ndarray, shape (m,)
     """
+    check_graph(graph, "orientation_variances")
     return np.linalg.inv(graph.information)[:, 2, 2]
 
 
@@ -487,7 +514,7 @@ def min_uncertainty_tree(graph, anchor=None):
     >>> t.edges.tolist(), t.chords.tolist()
     ([0, 3, 4], [1, 2])
     """
-    root = _anchor_row(graph, anchor)
+    root = _anchor_row(graph, anchor, "min_uncertainty_tree")
     n, e = graph.n, graph.edges
     var = orientation_variances(graph)
     tiny = np.finfo(float).tiny
@@ -547,6 +574,7 @@ def cyclomatic_number(graph):
 
     In lagolib's count of vertices, ``d = graph.m - graph.n + (number of components)``.
     """
+    check_graph(graph, "cyclomatic_number")
     return graph.m - graph.n + graph.components()[0]
 
 
@@ -570,9 +598,30 @@ def fundamental_circuit(graph, tree, chord):
         +1 for an edge walked tail → head, −1 for one walked backwards: the non-zero entries of
         the circuit vector ``c`` (§IV-E).
     """
-    chord = int(chord)
+    where = "fundamental_circuit"
+    check_graph(graph, where)
+    if not isinstance(tree, SpanningTree | str):
+        raise OptionTypeError(
+            f"{where}: tree must be a SpanningTree (or a tree name, {', '.join(map(repr, TREES))}); "
+            f"got {type(tree).__name__}"
+        )
+    tree = spanning_tree(graph, tree)  # a given tree is checked against the graph
+    chord = check_int(chord, "chord", where)
     if not 0 <= chord < graph.m or tree.in_tree[chord]:
-        raise GraphError(f"edge {chord} is not a chord of this spanning tree")
+        raise GraphError(
+            f"{where}: edge {chord} is not a chord of this spanning tree (chords: "
+            f"{_few(tree.chords)})"
+        )
+    return _fundamental_circuit(graph, tree, chord)
+
+
+def _few(values, k=8):
+    shown = ", ".join(map(str, values[:k].tolist()))
+    return f"[{shown}{', ...' if values.size > k else ''}]"
+
+
+def _fundamental_circuit(graph, tree, chord):
+    """:func:`fundamental_circuit` of a checked tree and chord."""
     i, j = graph.edges[chord]
     edges, signs = tree.path(j, i)
     return np.concatenate([[chord], edges]), np.concatenate([[1.0], signs])
@@ -656,10 +705,11 @@ def cycle_basis(graph, tree="odometric", anchor=None):
     ----------
     Chen, *Graph Theory and Its Engineering Applications*, 1997; Carlone et al. 2011, §IV-E.
     """
+    _anchor_row(graph, anchor, "cycle_basis")
     tree = spanning_tree(graph, tree, anchor)
     rows, cols, vals = [], [], []
     for c, chord in enumerate(tree.chords):
-        edges, signs = fundamental_circuit(graph, tree, chord)
+        edges, signs = _fundamental_circuit(graph, tree, chord)
         rows.append(np.full(edges.size, c))
         cols.append(edges)
         vals.append(signs)

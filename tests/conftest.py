@@ -13,6 +13,10 @@ from hypothesis import settings
 
 from lagolib import datasets
 
+# no doctests here: --doctest-modules would import this file as a test module named "conftest",
+# the name book/conftest.py's module has too (import file mismatch)
+collect_ignore = ["conftest.py"]
+
 # property tests are deterministic: the same examples on every run, no example database
 settings.register_profile("lagolib", derandomize=True, database=None, deadline=None)
 settings.load_profile("lagolib")

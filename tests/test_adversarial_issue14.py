@@ -629,7 +629,7 @@ def test_cli_exit_codes_certified_and_not(capsys, files, local_minimum_file, tmp
         "-o", out_path,
     )  # fmt: skip
     assert rc == cli.NOT_CERTIFIED == 3, err
-    assert "not certified: the budget of max_escapes=0 ran out" in out
+    assert "not certified: the budget of --max-escapes 0 ran out" in out  # said for the shell
     assert out_path.exists()
     rc, out, err = _call(capsys, "certify", local_minimum_file, "--initial", "odometry")
     assert rc == 0, err

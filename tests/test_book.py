@@ -1,44 +1,49 @@
-"""Every chapter of the book runs as a test, renders its figures, and is stored without outputs.
+"""The chapters are stored as the book needs them, and the harness that runs them is sound.
 
-Each ``book/*.ipynb`` (whatever chapters exist; a new chapter is picked up by its file name) is
-executed with nbclient in its own Jupyter kernel, twice:
+The chapters run as tests through nbmake (``pytest --nbmake book/``, and ``pytest``, whose
+addopts carry ``--nbmake``): ``book/conftest.py`` makes each chapter an ``online`` and an
+``offline`` run, executed once each by nbmake's runner with the book's headless client
+(``book/_ext/lagolib_headless.py``), and fails a run on a cell error or timeout, on fewer figures
+than the chapter promises, and on an offline run writing to the download cache.  This file checks,
+without running a chapter:
 
-``online``
-    the environment as it is: in CI ``LAGOLIB_DATA`` names the benchmark mirror, so the chapters
-    show the real benchmarks;
-``offline``
-    ``LAGOLIB_DATA`` unset, ``LAGOLIB_OFFLINE=1`` and an empty ``LAGOLIB_CACHE``: the chapters fall
-    back to the shipped examples, and their offline text is exercised.  Marked ``offline`` (it
-    needs nothing and runs everywhere, CI included; ``-m "not offline"`` leaves it out).
+* every chapter is stored stripped (no outputs, no execution counts), promises its figures
+  (``metadata["lagolib"]["figures"]``) and declares its per-cell timeout
+  (``metadata["execution"]["timeout"]``, read by nbmake and Jupyter Book);
+* no chapter reaches into lagolib's private API, and every random generator is seeded;
 
-A chapter fails on any cell error, and when it renders fewer figures (``image/png`` outputs) than
-it promises in its metadata, ``nb.metadata["lagolib"]["figures"]``.  The kernels draw with
-matplotlib's inline backend: ``MPLBACKEND`` is removed from the kernel's environment even when the
-user's shell sets it (``MPLBACKEND=Agg`` would silently render nothing).  BLAS libraries are held to
-one thread in the kernels: the chapters' vectors are small, and on a loaded machine threads fighting
-for the cores made a cell 50x slower.  The per-cell timeout is a guard against hangs, not a time
-limit on the chapters.
+and, on small notebooks of its own, that the harness keeps its promises: the headless client sends
+the kernel nothing while a cell runs (a widget cell included), no wait on the kernel goes unchecked
+for more than a second, a hanging cell fails after the notebook's timeout with the cell named, and
+a chapter that breaks its figure or cache promise fails with a message saying so.
+
+:func:`execute` and :func:`kernel_env` run other notebooks the same way (the student copies of
+``tests/test_exercises_book.py``).
 """
 
+import asyncio
+import importlib.util
 import os
 import shutil
-import tempfile
+import subprocess
+import sys
 from pathlib import Path
+from queue import Empty
 
 import nbformat
 import pytest
-from jupyter_client import KernelManager
-from nbclient import NotebookClient
-from nbclient.exceptions import CellExecutionError, CellTimeoutError
 
-BOOK = Path(__file__).resolve().parent.parent / "book"
+ROOT = Path(__file__).resolve().parent.parent
+BOOK = ROOT / "book"
 CHAPTERS = sorted(BOOK.glob("*.ipynb"))
-CELL_TIMEOUT = 120  # seconds; a hang guard only
-THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-# the user's download cache as it was before conftest's per-test fixture replaced it
-USER_CACHE = os.environ.get("LAGOLIB_CACHE", "")
+MAX_CELL_TIMEOUT = 120  # seconds: a chapter's per-cell timeout is a hang guard, not a time limit
 
-pytestmark = pytest.mark.book
+
+def _headless():
+    """``book/_ext/lagolib_headless.py`` (the instance ``book/conftest.py`` uses, if loaded)."""
+    if "lagolib_headless" not in sys.modules and str(BOOK / "_ext") not in sys.path:
+        sys.path.insert(0, str(BOOK / "_ext"))
+    return importlib.import_module("lagolib_headless")
 
 
 def _ids(paths):
@@ -49,75 +54,30 @@ def _read(path):
     return nbformat.read(path, as_version=4)
 
 
-def promised_figures(nb, path):
-    """``nb.metadata["lagolib"]["figures"]``, checked to be an int >= 1."""
-    n = nb.metadata.get("lagolib", {}).get("figures")
-    if n is None:
-        pytest.fail(
-            f"{path.name}: the chapter does not say how many figures it renders; add "
-            'nb.metadata["lagolib"]["figures"] = N (with nbformat) for the N >= 1 figures it shows'
-        )
-    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
-        pytest.fail(f'{path.name}: metadata["lagolib"]["figures"] must be an int >= 1; got {n!r}')
-    return n
-
-
-def count_figures(nb):
-    """Number of ``image/png`` outputs of the executed notebook."""
-    return sum(
-        "image/png" in out.get("data", {})
-        for cell in nb.cells
-        if cell.cell_type == "code"
-        for out in cell.get("outputs", [])
-    )
-
-
 def kernel_env(variant, cache):
-    """The kernel's environment for ``variant`` ("online" or "offline")."""
-    env = dict(os.environ)
-    env.pop("MPLBACKEND", None)  # ipykernel then selects matplotlib_inline
-    env.update({k: "1" for k in THREAD_VARS})
-    if variant == "offline":
-        env.pop("LAGOLIB_DATA", None)
-        env["LAGOLIB_OFFLINE"] = "1"
-        env["LAGOLIB_CACHE"] = str(cache)
-    else:
-        env.pop("LAGOLIB_OFFLINE", None)
-        env["LAGOLIB_CACHE"] = USER_CACHE or str(cache)
-    return env
+    """The kernel's environment for ``variant`` ("online" or "offline"); see lagolib_headless."""
+    return _headless().kernel_env(variant, cache)
 
 
-def execute(path, env):
-    """Run the notebook at ``path`` in a fresh kernel; return the executed notebook."""
-    nb = _read(path)
-    # IPC sockets, not TCP ports: jupyter_client picks a "free" TCP port by binding and releasing
-    # it, and another kernel starting beside it can take the port first — the kernel then never
-    # answers and nbclient waits out its start-up timeout (seen as ~120 s stalls under load)
-    sockets = tempfile.mkdtemp(prefix="lagolib-kernel-")
-    km = KernelManager(kernel_name="python3", transport="ipc", ip=os.path.join(sockets, "k"))
-    client = NotebookClient(
-        nb,
-        km=km,
-        timeout=CELL_TIMEOUT,
-        kernel_name="python3",
-        allow_errors=False,
-        resources={"metadata": {"path": str(path.parent)}},
-    )
+def execute(path, env, timeout=MAX_CELL_TIMEOUT):
+    """Run the notebook at ``path`` as the chapters run; return the executed notebook.
+
+    Fails the test, naming the notebook and the cell, on a cell error or timeout (the notebook's
+    ``metadata["execution"]["timeout"]``, else ``timeout``) and on a dead kernel.
+    """
+    from nbclient.exceptions import DeadKernelError
+
     try:
-        client.execute(env=env)
-    except CellTimeoutError as exc:
-        pytest.fail(f"{path.name}: a cell ran longer than {CELL_TIMEOUT} s (hang?)\n{exc}")
-    except CellExecutionError as exc:
-        pytest.fail(f"{path.name}: a cell raised\n{exc}", pytrace=False)
-    finally:
-        shutil.rmtree(sockets, ignore_errors=True)
-    return nb
-
-
-@pytest.fixture(scope="session")
-def online_cache(tmp_path_factory):
-    """One download cache for all online chapters when the user has none."""
-    return tmp_path_factory.mktemp("book-cache")
+        res = _headless().run(path, env, timeout=timeout)
+    except DeadKernelError as exc:
+        pytest.fail(f"{Path(path).name}: the kernel died ({exc})", pytrace=False)
+    if res.error is not None:
+        pytest.fail(
+            f"{Path(path).name}: cell {res.error.failing_cell_index}: {res.error.summary}\n"
+            f"{res.error.trace}",
+            pytrace=False,
+        )
+    return res.nb
 
 
 def test_book_has_chapters():
@@ -126,7 +86,7 @@ def test_book_has_chapters():
 
 @pytest.mark.parametrize("path", CHAPTERS, ids=_ids(CHAPTERS))
 def test_stored_without_outputs(path):
-    """Chapters are stored stripped: no outputs, no execution counts, and a figure promise."""
+    """Stored stripped, with a figure promise and a per-cell timeout."""
     nb = _read(path)
     dirty = [
         i
@@ -138,33 +98,169 @@ def test_stored_without_outputs(path):
         f"{path.name}: cells {dirty} are stored with outputs or execution counts; clear them "
         "(Jupyter: Edit > Clear Outputs of All Cells; or nbformat) before saving"
     )
-    promised_figures(nb, path)
-
-
-@pytest.mark.parametrize("path", CHAPTERS, ids=_ids(CHAPTERS))
-def test_chapter_online(path, online_cache):
-    """The chapter runs as the user's environment has it (CI: the benchmark mirror)."""
-    nb = execute(path, kernel_env("online", online_cache))
-    n = promised_figures(nb, path)
-    assert count_figures(nb) >= n, (
-        f"{path.name}: rendered {count_figures(nb)} figures, promises {n}"
+    n = nb.metadata.get("lagolib", {}).get("figures")
+    assert isinstance(n, int) and not isinstance(n, bool) and n >= 1, (
+        f'{path.name}: metadata["lagolib"]["figures"] must be an int >= 1, the figures the '
+        f"chapter renders (book/conftest.py counts them); got {n!r}"
+    )
+    timeout = nb.metadata.get("execution", {}).get("timeout")
+    assert (
+        isinstance(timeout, int)
+        and not isinstance(timeout, bool)
+        and 1 <= timeout <= MAX_CELL_TIMEOUT
+    ), (
+        f'{path.name}: metadata["execution"]["timeout"] must be an int of 1 to '
+        f"{MAX_CELL_TIMEOUT} seconds, the per-cell hang guard nbmake and Jupyter Book read "
+        f"(without it a stalled cell idles for 300 s); got {timeout!r}"
     )
 
 
-@pytest.mark.offline
-@pytest.mark.parametrize("path", CHAPTERS, ids=_ids(CHAPTERS))
-def test_chapter_offline(path, tmp_path):
-    """The chapter runs without benchmarks or network: the shipped examples stand in."""
-    cache = tmp_path / "empty-cache"
-    cache.mkdir()
-    nb = execute(path, kernel_env("offline", cache))
-    n = promised_figures(nb, path)
-    assert count_figures(nb) >= n, (
-        f"{path.name}: rendered {count_figures(nb)} figures, promises {n}"
+def _notebook(tmp_path, name, sources, **metadata):
+    nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(s) for s in sources])
+    nb.metadata.update(
+        {"kernelspec": {"display_name": "Python 3", "language": "python", "name": "python3"}},
+        **metadata,
     )
-    assert not any(cache.iterdir()), (
-        f"{path.name}: wrote {list(cache.iterdir())} to the cache offline"
+    path = tmp_path / name
+    nbformat.write(nb, path)
+    return path
+
+
+WIDGET_CELL = (
+    "from ipywidgets import FloatSlider, interact\n"
+    "def show(sigma):\n"
+    "    for k in range(3):\n"
+    "        print(f'line {k}: sigma = {sigma:.2f}', flush=True)\n"
+    "interact(show, sigma=FloatSlider(value=0.1, min=0.0, max=1.0));"
+)
+
+
+def test_headless_client_sends_nothing_while_a_cell_runs(tmp_path):
+    """A widget cell run headless: the client writes only its requests to the kernel.
+
+    nbclient's stock client echoes each output of an ``interact`` callback back to the kernel
+    (a ``comm_msg`` on the shell channel, its Output-widget mimic) while it waits on that channel
+    for the cell's reply; over TCP, 7 of 2100 such cells then had their reply noticed only when
+    the wait timed out (300 s under nbmake's default).  The book's client sends nothing mid-cell.
+    """
+    hl = _headless()
+    path = _notebook(tmp_path, "widget.ipynb", [WIDGET_CELL, "print('after')"])
+    nb = _read(path)
+    sent = []
+
+    class Recording(hl.PassiveClient):
+        async def async_start_new_kernel_client(self):
+            kc = await super().async_start_new_kernel_client()
+            send = kc.shell_channel.send
+
+            def record(msg):
+                sent.append(msg["header"]["msg_type"])
+                return send(msg)
+
+            kc.shell_channel.send = record
+            return kc
+
+    env = kernel_env("offline", tmp_path)
+    Recording(
+        nb, kernel_env=env, timeout=60, resources={"metadata": {"path": str(tmp_path)}}
+    ).execute()
+    assert sent.count("execute_request") == 2
+    assert set(sent) <= {"kernel_info_request", "execute_request"}, sent
+    text = "".join(o.get("text", "") for c in nb.cells for o in c.outputs)
+    assert "line 2: sigma = 0.10" in text and "after" in text, text
+
+
+def test_no_wait_on_the_kernel_goes_unchecked_for_more_than_a_slice():
+    """A wait of ``timeout`` seconds (or forever) polls the socket at least every slice.
+
+    pyzmq's poll re-checks the socket only when its timeout ends, so a wake-up the event loop
+    missed used to cost the whole cell timeout; sliced, it costs at most one slice.
+    """
+    hl = _headless()
+
+    class Channel:
+        """Answers on the fourth poll; records the timeout of each."""
+
+        def __init__(self):
+            self.timeouts = []
+
+        async def get_msg(self, timeout=None):
+            self.timeouts.append(timeout)
+            if len(self.timeouts) < 4:
+                raise Empty
+            return {"msg_type": "execute_reply"}
+
+    for timeout in (None, 300.0):
+        ch = Channel()
+        hl._sliced(ch)
+        assert asyncio.run(ch.get_msg(timeout=timeout)) == {"msg_type": "execute_reply"}
+        assert len(ch.timeouts) == 4
+        assert all(t is not None and 0 <= t <= hl.POLL_SLICE for t in ch.timeouts), ch.timeouts
+
+    # a deadline still ends the wait with Empty (nbclient then reports the cell's timeout)
+    class Silent:
+        async def get_msg(self, timeout=None):
+            await asyncio.sleep(timeout)
+            raise Empty
+
+    ch = Silent()
+    hl._sliced(ch, step=0.05)
+    with pytest.raises(Empty):
+        asyncio.run(ch.get_msg(timeout=0.2))
+
+
+def test_a_hanging_cell_fails_after_the_notebooks_timeout(tmp_path):
+    """The notebook's own per-cell timeout, not a 300 s default; the cell is named."""
+    path = _notebook(
+        tmp_path,
+        "hang.ipynb",
+        ["x = 1", "import time\ntime.sleep(600)", "y = 2"],
+        execution={"timeout": 3},
     )
+    res = _headless().run(path, kernel_env("offline", tmp_path), timeout=600)
+    assert res.error is not None
+    assert res.error.failing_cell_index == 1
+    assert "timed out" in res.error.summary and "3 seconds" in res.error.summary, res.error.summary
+    assert "time.sleep(600)" in res.error.trace
+
+
+def test_a_broken_promise_fails_the_chapter(tmp_path):
+    """Through ``pytest --nbmake``: fewer figures than promised, and a cache write offline."""
+    book = tmp_path / "book"
+    (book / "_ext").mkdir(parents=True)
+    shutil.copy(BOOK / "conftest.py", book / "conftest.py")
+    shutil.copy(BOOK / "_ext" / "lagolib_headless.py", book / "_ext" / "lagolib_headless.py")
+    _notebook(
+        book,
+        "01_broken.ipynb",
+        [
+            "import os, pathlib\n"
+            "pathlib.Path(os.environ['LAGOLIB_CACHE'], 'stray.txt').write_text('x')",
+            "from IPython.display import Image, display\n"
+            "import base64\n"
+            "display(Image(data=base64.b64decode("
+            "'iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg=='"
+            ")))",
+        ],
+        lagolib={"figures": 2},
+        execution={"timeout": 60},
+    )
+    (tmp_path / "pytest.ini").write_text("[pytest]\n")
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTEST_", "LAGOLIB_OFFLINE"))}
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", *"--nbmake book -p no:cacheprovider -q -rf".split()]
+        + ["-m", "offline"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 1, out
+    assert "1 failed, 1 deselected" in out, out
+    assert "01_broken.ipynb [offline]: rendered 1 figures, promises 2" in out, out
+    assert "wrote ['stray.txt'] to the download cache offline" in out, out
 
 
 def _code(nb):

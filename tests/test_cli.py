@@ -379,7 +379,7 @@ def test_solve_lm_says_when_it_stopped_before_converging(aniso, capsys, tmp_path
     assert not res.converged
     _, out, _ = _solved(capsys, path, tmp_path, "--method", "lm", "-n", "2")
     assert ", 2 iterations, " in out
-    assert "(not converged: reached max_iterations=2)" in out
+    assert "(not converged: reached --iterations 2)" in out
 
 
 def test_solve_progress_for_gn_is_one_line_per_iteration_on_stderr(aniso, capsys, tmp_path):
@@ -519,7 +519,7 @@ def test_certify_mit_without_escapes_is_not_certified(benchmark, capsys, tmp_pat
     assert _number(out, "lambda_min") < 0
     assert _number(out, "gap") == pytest.approx(f - bound, rel=1e-5)
     assert _field(out, "escapes") == "0"
-    assert "not certified: the budget of max_escapes=0 ran out" in out
+    assert "not certified: the budget of --max-escapes 0 ran out" in out
     assert "escape to rank" not in out
     # -o writes the chi2 poses, certified or not
     assert lagolib.chi2(lagolib.read(out_path)) == pytest.approx(_number(out, "chi2"), rel=1e-9)

@@ -98,7 +98,7 @@ def test_jacobians_not_attempted(capsys, answer):
             ),
             "A_ij is right except its entry [2, 2], de_theta/dtheta_i: yours 1, expected -1",
         ),
-        (lambda a, b, z: np.zeros(3), "it should return two 3x3 arrays, (A, B)"),
+        (lambda a, b, z: np.zeros(3), "jacobian_blocks should return two 3x3 arrays, (A, B)"),
         (lambda a, b, z: (np.eye(3), np.eye(2)), "B_ij has shape (2, 2), expected (3, 3)"),
         (_raises, "jacobian_blocks raised ValueError: not finished"),
     ],
@@ -194,8 +194,8 @@ def test_contribution_partly_placeholder_is_not_attempted(capsys):
         ),
         (
             lambda e, A, B, W: contribution(e, A, B, W)[:4],
-            "it should return five arrays, (H_ii, H_ij, H_jj, b_i, b_j); it returned a tuple of "
-            "length 4",
+            "edge_contribution should return five arrays, (H_ii, H_ij, H_jj, b_i, b_j); it "
+            "returned a tuple of length 4",
         ),
         (
             lambda e, A, B, W: contribution(e, A, B, W)[:3] + ((A.T @ W @ e)[:, None], B.T @ W @ e),
@@ -257,14 +257,18 @@ def test_structure_not_attempted(capsys, answer):
         ((23, 0), ["null_dim is 0", "H is singular"]),
         ((49, 3), ["n_blocks is 49", "H is sparse", "null_dim is 3"]),
         ((23, 4), ["null_dim is 4", "3 degrees of freedom"]),
-        (("23", 6), ["n_blocks should be a whole number"]),
+        (("23", 6), ["n_blocks should be a whole number, got '23' (a string"]),
+        ((23, True), ["null_dim should be a whole number, got True (a bool)"]),
+        ((23.5, 6.0), ["n_blocks should be a whole number, got 23.5"]),
     ],
 )
 def test_structure_wrong(capsys, answer, messages):
     ok, out = run(capsys, ch02.check_structure, *answer)
     assert not ok and not passed("2.3")
     assert "Exercise 2.3 — not yet:" in out
-    assert "lagolib's H has 23 non-zero blocks" in out  # the actual values are printed
+    # the actual values are printed with every prediction, not with an answer of the wrong kind
+    kind = any("should be" in m for m in messages)
+    assert ("lagolib's H has 23 non-zero blocks" in out) is not kind
     for m in messages:
         assert m in out
 
@@ -300,13 +304,18 @@ def test_damping_not_attempted(capsys, answer):
         (("same", True), ["trend is 'same'", "smallest and the largest lambda_initial"]),
         (("more", False), ["same_optimum is False", "changes the path to the minimum"]),
         (("faster", True), ["trend should be one of ['more', 'fewer', 'same']"]),
-        (("more", "yes"), ["same_optimum should be one of [True, False]"]),
+        (("more", "yes"), ["same_optimum should be True or False, got 'yes' (a string)"]),
+        (("more", 1), ["same_optimum should be True or False, got 1 (an int)"]),
+        ((b"more", True), ["trend should be one of ['more', 'fewer', 'same'] (a string)"]),
     ],
 )
 def test_damping_wrong(capsys, answer, messages):
     ok, out = run(capsys, ch02.check_damping, *answer)
     assert not ok and not passed("2.4")
-    assert "Exercise 2.4 — not yet:" in out and "1e+05: 10" in out
+    assert "Exercise 2.4 — not yet:" in out
+    # the sweep is printed with every prediction, not with an answer of the wrong kind
+    kind = any("True or False," in m or "(a string)" in m for m in messages)
+    assert ("1e+05: 10" in out) is not kind
     for m in messages:
         assert m in out
 

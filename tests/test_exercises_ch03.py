@@ -96,7 +96,8 @@ def test_31_sparse_result_is_named(capsys):
 
     assert ch03.check_marginal_covariance(sparse) is False
     out = _out(capsys)
-    assert "you returned a csc_matrix (a scipy.sparse matrix)" in out and ".toarray()" in out
+    assert "should return an array of real numbers of shape (3, 3)" in out
+    assert "it returned a csc_matrix (a scipy.sparse matrix)" in out and ".toarray()" in out
 
 
 def test_31_conditional_sigma_is_reported(capsys):
@@ -349,7 +350,7 @@ def test_34_stub_not_attempted(gate_world, trend, err, capsys):
         (TREND, 0.342, "0.342 m is the reading for the gate at confidence 0.999"),
         (TREND, 0.54, "is the largest error of all false candidates"),
         (TREND, 0.25, "max_false_error is 0.250 m; read it off the row for confidence 0.99"),
-        (TREND, "0.32 m", "max_false_error should be a number"),
+        (TREND, "0.32 m", "max_false_error should be one real number, got '0.32 m'"),
         (TREND, 32, "looks like centimetres; the answer is in metres"),
         ("rises", 0.32, "trend should be one of"),
     ],
@@ -359,7 +360,9 @@ def test_34_wrong_answers(gate_world, trend, err, message, capsys):
     out = _out(capsys)
     assert out.startswith("Exercise 3.4 — not yet")
     assert message in out
-    assert "Actual: at confidence 0.99 (d^2 <= 11.34)" in out
+    # the table is printed with every answer, not with one of the wrong kind
+    kind = "real number" in message
+    assert ("Actual: at confidence 0.99 (d^2 <= 11.34)" in out) is not kind
 
 
 def test_34_largest_true_error_is_diagnosed(gate_world, capsys):

@@ -196,7 +196,7 @@ def test_chord_not_a_pair_and_raises(capsys):
         return regularize_chord(delta, edges, signs)[1]
 
     ok, out = run(capsys, ch05.check_regularize_chord, only_k)
-    assert not ok and "two values" in out
+    assert not ok and "should return two numbers, (cycle_sum, k); it returned" in out
 
     def broken(delta, edges, signs):
         return delta[edges + 10_000], 0

@@ -237,7 +237,10 @@ def _replace(k, value):
             "W is the covariance P_Δg",
         ),
         (lambda t, d, o: phase2_ok(t, d, o)[:2], "returned a tuple of length 2"),
-        (lambda t, d, o: np.zeros(2), "returned a ndarray"),
+        (
+            lambda t, d, o: np.zeros(2),
+            "should return three arrays, (Delta_g, J, W); it returned an array of dtype float64",
+        ),
     ],
     ids=[
         "Dg-frame-i",
@@ -337,7 +340,7 @@ def test_sweep_stub_is_not_attempted(capsys, answer):
         ((True, False, 4451.4 * 1.2), "gap_ratio is 5341.68; the reference is 4451.41"),
         ((True, False, 0.701 / 0.0159), "the gap at ratio 64 divided by the gap at ratio 2"),
         (("yes", False, GAP_RATIO), "gap_grows should be True or False"),
-        ((True, False, "many"), "gap_ratio should be a number"),
+        ((True, False, "many"), "gap_ratio should be one real number, got 'many'"),
     ],
     ids=[
         "gap-trend",

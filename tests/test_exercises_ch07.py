@@ -335,7 +335,7 @@ def test_noise_gap_stub_is_not_attempted(capsys, stub):
         ((0.07, "ratio"), "should be one of the swept σ_θ"),
         ((0.05, "noise"), "what_decides should be one of"),
         ((0.05, np.array([1, 2])), "(a string)"),
-        (("abc", "ratio"), "closest_sigma_theta should be a number"),
+        (("abc", "ratio"), "closest_sigma_theta should be one real number, got 'abc'"),
     ],
 )
 def test_noise_gap_wrong_answers_are_diagnosed(capsys, wrong, message):

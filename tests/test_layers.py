@@ -10,6 +10,7 @@ import lagolib
 # each module may import only from modules in earlier layers (or its own layer's helpers below it)
 LAYERS = [
     ["errors"],
+    ["files"],
     ["se2"],
     ["checks"],
     ["graph"],

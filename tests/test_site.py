@@ -15,12 +15,17 @@ every page of the table of contents and checks what a reader sees:
 * every link of the equation index resolves: its page exists and has the anchor.
 
 A screenshot of chapter 6 is saved to ``book/_build/screenshots/06_lago.png`` (or
-``$LAGOLIB_ARTIFACTS``).  Without Chromium or Jupyter Book the tests skip — unless
-``LAGOLIB_REQUIRE_BROWSER=1`` (``.ci/run`` sets it), which turns the skip into a failure.
+``$LAGOLIB_ARTIFACTS``).  The pages need MathJax 2 on this machine (Debian's ``libjs-mathjax
+fonts-mathjax``, or ``$LAGOLIB_MATHJAX``), which the site then serves itself: without it the site
+would load MathJax from a CDN, which an offline machine cannot reach.  Without Chromium, local
+MathJax or Jupyter Book the tests skip, saying which is missing — unless
+``LAGOLIB_REQUIRE_BROWSER`` is set (to anything but ``0``; ``.ci/run`` sets it), which turns the
+skip into a failure saying what to install.
 """
 
 import functools
 import http.server
+import importlib.util
 import json
 import os
 import re
@@ -35,7 +40,6 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 BOOK = ROOT / "book"
-REQUIRE = os.environ.get("LAGOLIB_REQUIRE_BROWSER", "") == "1"
 CHROMIUM = os.environ.get("LAGOLIB_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
 BUILD_TIMEOUT = 1500  # seconds; a hang guard only
 THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
@@ -49,10 +53,63 @@ MATH_ERRORS = ", ".join(
 )
 
 
-def _unavailable(why):
-    if REQUIRE:
-        pytest.fail(f"{why} (LAGOLIB_REQUIRE_BROWSER=1: the site test must run here)")
-    pytest.skip(why)
+def _required():
+    """True when ``LAGOLIB_REQUIRE_BROWSER`` is set (to anything but empty or ``0``)."""
+    return os.environ.get("LAGOLIB_REQUIRE_BROWSER", "").strip() not in ("", "0")
+
+
+def _unavailable(why, install):
+    """Skip for ``why`` — or fail, saying to ``install`` it, when the browser test is required."""
+    if _required():
+        value = os.environ["LAGOLIB_REQUIRE_BROWSER"]
+        pytest.fail(
+            f"{why}; install {install} (LAGOLIB_REQUIRE_BROWSER={value}: the site test must run "
+            "here)",
+            pytrace=False,
+        )
+    pytest.skip(f"{why} (install {install})")
+
+
+def _site_extension():
+    """The book's Sphinx extension (``book/_ext/lagolib_site.py``), which finds local MathJax."""
+    try:
+        import docutils  # noqa: F401  (the extension's one import; Jupyter Book brings it)
+    except ImportError:
+        _unavailable("Jupyter Book 1 is not installed", "the test tools: pip install -e '.[test]'")
+    spec = importlib.util.spec_from_file_location("lagolib_site", BOOK / "_ext" / "lagolib_site.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def local_mathjax():
+    """The MathJax the site serves itself; skips (or fails) when there is none.
+
+    A site built elsewhere (``LAGOLIB_SITE``) brings its own, in ``_static/mathjax``.
+    """
+    prebuilt = os.environ.get("LAGOLIB_SITE")
+    if prebuilt:
+        if not (Path(prebuilt) / "index.html").is_file():
+            pytest.fail(f"LAGOLIB_SITE={prebuilt} is not a built site (no index.html)")
+        folder = Path(prebuilt) / "_static" / "mathjax"
+        if (folder / "MathJax.js").is_file():
+            return folder
+        _unavailable(
+            f"the prebuilt site LAGOLIB_SITE={prebuilt} has no local MathJax "
+            "(_static/mathjax/MathJax.js): it would load MathJax from a CDN",
+            "libjs-mathjax fonts-mathjax (Debian) and build the site again",
+        )
+    extension = _site_extension()
+    folder = extension.mathjax_folder()
+    if folder is None:
+        _unavailable(
+            f"MathJax 2 is not installed here (no {extension.DEBIAN_MATHJAX}/MathJax.js, "
+            "LAGOLIB_MATHJAX unset): the site would load MathJax from a CDN, which the browser "
+            "test cannot count on",
+            "libjs-mathjax fonts-mathjax (Debian: apt install libjs-mathjax fonts-mathjax), or "
+            "set LAGOLIB_MATHJAX to a MathJax 2 folder",
+        )
+    return folder
 
 
 def _toc_pages():
@@ -88,10 +145,10 @@ def site(tmp_path_factory):
         return Path(prebuilt), ""
     jb = Path(sys.executable).with_name("jupyter-book")
     if not jb.exists():
-        _unavailable("Jupyter Book 1 is not installed (pip install -e '.[test]')")
+        _unavailable("Jupyter Book 1 is not installed", "the test tools: pip install -e '.[test]'")
     out = tmp_path_factory.mktemp("site")
     env = dict(os.environ)
-    env.pop("MPLBACKEND", None)  # the chapters draw inline, as in tests/test_book.py
+    env.pop("MPLBACKEND", None)  # the chapters draw inline, as in book/conftest.py
     env.update({k: "1" for k in THREAD_VARS})
     proc = subprocess.run(
         [str(jb), "build", str(BOOK), "--path-output", str(out), "--keep-going"],
@@ -127,11 +184,12 @@ def server(site):
 @pytest.fixture(scope="session")
 def browser():
     if not Path(CHROMIUM).exists():
-        _unavailable(f"Chromium not found at {CHROMIUM} (Debian: apt install chromium)")
+        _unavailable(f"Chromium not found at {CHROMIUM}", "chromium (Debian: apt install chromium)")
+    local_mathjax()  # before the site is built: without it no page would pass
     try:
         from playwright.sync_api import sync_playwright
     except ImportError:
-        _unavailable("playwright is not installed (pip install -e '.[test]')")
+        _unavailable("playwright is not installed", "the test tools: pip install -e '.[test]'")
     with sync_playwright() as p:
         b = p.chromium.launch(
             executable_path=CHROMIUM, args=["--no-sandbox", "--disable-gpu"], headless=True
@@ -188,6 +246,56 @@ def _text_outside_code(page):
             return main.innerText;
         }"""
     )
+
+
+class _Extension:
+    """Stands in for book/_ext/lagolib_site.py: MathJax at ``folder`` (or nowhere)."""
+
+    DEBIAN_MATHJAX = Path("/usr/share/javascript/mathjax")
+
+    def __init__(self, folder):
+        self.folder = folder
+
+    def mathjax_folder(self):
+        return self.folder
+
+
+@pytest.mark.parametrize("require", ["", "0", "1", "yes"])
+def test_without_local_mathjax_the_browser_tests_skip_or_fail(monkeypatch, tmp_path, require):
+    """No browser needed: Chromium without MathJax skips with the reason, or fails if required."""
+    monkeypatch.setattr(sys.modules[__name__], "_site_extension", lambda: _Extension(None))
+    monkeypatch.delenv("LAGOLIB_SITE", raising=False)
+    monkeypatch.setenv("LAGOLIB_REQUIRE_BROWSER", require)
+    if require in ("", "0"):
+        with pytest.raises(pytest.skip.Exception, match="MathJax 2 is not installed here") as e:
+            local_mathjax()
+        assert "from a CDN" in str(e.value) and "libjs-mathjax fonts-mathjax" in str(e.value)
+    else:
+        with pytest.raises(pytest.fail.Exception, match="MathJax 2 is not installed here") as e:
+            local_mathjax()
+        assert "install libjs-mathjax fonts-mathjax" in str(e.value)
+        assert f"LAGOLIB_REQUIRE_BROWSER={require}: the site test must run here" in str(e.value)
+    # with MathJax, or a prebuilt site that serves its own, nothing skips
+    monkeypatch.setattr(sys.modules[__name__], "_site_extension", lambda: _Extension(tmp_path))
+    assert local_mathjax() == tmp_path
+    (tmp_path / "_static" / "mathjax").mkdir(parents=True)
+    (tmp_path / "_static" / "mathjax" / "MathJax.js").write_text("")
+    (tmp_path / "index.html").write_text("")
+    monkeypatch.setattr(sys.modules[__name__], "_site_extension", lambda: _Extension(None))
+    monkeypatch.setenv("LAGOLIB_SITE", str(tmp_path))
+    assert local_mathjax() == tmp_path / "_static" / "mathjax"
+
+
+def test_the_real_extension_finds_mathjax_where_the_site_build_does(monkeypatch, tmp_path):
+    """The check asks the site's own extension: LAGOLIB_MATHJAX first, else Debian's folder."""
+    pytest.importorskip("docutils")
+    extension = _site_extension()
+    (tmp_path / "config").mkdir()
+    (tmp_path / "MathJax.js").write_text("")
+    (tmp_path / "config" / f"{extension.CONFIG}.js").write_text("")
+    monkeypatch.delenv("LAGOLIB_SITE", raising=False)
+    monkeypatch.setenv("LAGOLIB_MATHJAX", str(tmp_path))
+    assert local_mathjax() == tmp_path
 
 
 def test_site_builds_without_warnings(site):

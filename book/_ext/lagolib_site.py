@@ -12,6 +12,12 @@ r"""Sphinx extension for the lagolib book's site: local MathJax, tagged displays
 * **Scripts once.**  Jupyter Book 1 registers sphinx-thebe's inline configuration script twice;
   the second copy re-declares a ``const`` and raises in the browser console.  Identical
   ``<script>`` lines are kept once in every written page.
+* **Chapters executed as the tests execute them.**  The build runs every chapter with
+  ``lagolib_headless.PassiveClient`` (this folder): IPC sockets, nothing sent to the kernel while
+  a cell runs — nbclient's stock client echoes widget output back to the kernel mid-cell, and an
+  ``interact`` cell then sometimes idled for the whole cell timeout — and no wait on the kernel
+  unchecked for more than a second.  Each chapter's per-cell timeout is its
+  ``metadata["execution"]["timeout"]``.
 """
 
 import os
@@ -107,6 +113,9 @@ def _scripts_once(app, exc):
 
 
 def setup(app):
+    import lagolib_headless  # beside this file (Sphinx puts _ext on the path)
+
+    lagolib_headless.install()
     app.connect("config-inited", _use_local_mathjax)
     app.connect("builder-inited", _copy_mathjax)
     app.connect("doctree-read", _tagged_displays_unwrapped)

@@ -4,9 +4,13 @@ A chapter imports its module, e.g. ``from lagolib.exercises import ch06``, and e
 followed by a check such as ``ch06.check_phase1(phase1)``.  A check compares the answer with
 lagolib's own implementation, prints one line that starts with ``Exercise <id>`` — *correct*, *not
 yet* (what is wrong, by how much, and a hint) or *not attempted yet* (the stub is still as given) —
-and returns ``True`` or ``False``; it never raises on a wrong answer.  :func:`passed` tells whether
-an exercise's last check said correct (the full notebooks assert it in a cell hidden from the
-rendered book and dropped from the student copies).
+and returns ``True`` or ``False``; it never raises on a wrong answer.  A check says correct only for
+an answer of the right kind: each declares the kind of its answers (``Int()``, ``Real()``,
+``Bool()``, ``Choice(...)``, ``Shape(2)``, ``RealArray(...)``, ``Function(returns=...)``, see
+:mod:`lagolib.exercises._coerce`), and an answer of another kind (a complex number, a numeric
+string, a bool where a whole number is asked for, …) is "not yet" with a sentence naming the kind
+asked for.  :func:`passed` tells whether an exercise's last check said correct (the full notebooks
+assert it in a cell hidden from the rendered book and dropped from the student copies).
 
 The conventions that tie a chapter's exercise, solution, check and student stub together are in
 :mod:`lagolib.book`, which also writes the student copies.
@@ -25,6 +29,23 @@ False
 
 import importlib
 
+from lagolib.exercises._coerce import (
+    Bool,
+    Choice,
+    Function,
+    Int,
+    Real,
+    RealArray,
+    Shape,
+    Tuple,
+    WrongKind,
+    as_bool,
+    as_int,
+    as_real,
+    as_real_array,
+    as_shape,
+    as_text,
+)
 from lagolib.exercises._feedback import (
     NOT_ATTEMPTED,
     call_student,
@@ -46,6 +67,21 @@ CHAPTERS = ("ch00", "ch01", "ch02", "ch03", "ch04", "ch05", "ch06", "ch07", "ch0
 __all__ = [
     "CHAPTERS",
     "NOT_ATTEMPTED",
+    "Bool",
+    "Choice",
+    "Function",
+    "Int",
+    "Real",
+    "RealArray",
+    "Shape",
+    "Tuple",
+    "WrongKind",
+    "as_bool",
+    "as_int",
+    "as_real",
+    "as_real_array",
+    "as_shape",
+    "as_text",
     "call_student",
     "check",
     "compare_array",

@@ -13,6 +13,12 @@ A check never raises on a wrong answer: a student's function that raises is repo
 with the exception's type and message.  Only misuse of the check itself (an exercise id that does
 not exist) raises.
 
+A check says "correct" only for an answer of the right *kind*: each check declares the kind of
+every answer (:func:`check`, with the kinds of :mod:`lagolib.exercises._coerce`), and an answer
+of another kind — a complex number, a numeric string, a dict where a shape is asked for, a bool
+where a whole number is, a text or object array, None inside a list, a sparse matrix where a
+dense array is asked for — is reported "not yet" with a sentence naming the kind asked for.
+
 The comparisons here (:func:`compare_array`, :func:`compare_int`, :func:`compare_choice`,
 :func:`call_student`) return ``None`` when the answer is right and otherwise the sentence that says
 what is wrong, so a check reads as a short list of comparisons.
@@ -21,8 +27,24 @@ what is wrong, so a check reads as a short list of comparisons.
 from __future__ import annotations
 
 import functools
+import inspect
 
 import numpy as np
+
+from lagolib.exercises._coerce import (
+    NOT_ATTEMPTED,
+    Bool,
+    Choice,
+    Int,
+    Real,
+    RealArray,
+    StudentFunction,
+    WrongKind,
+    _Placeholder,
+    is_placeholder,
+    normalize_choice,
+    show,
+)
 
 __all__ = [
     "NOT_ATTEMPTED",
@@ -42,7 +64,6 @@ __all__ = [
     "compare_choice",
 ]
 
-NOT_ATTEMPTED = "not attempted yet"
 WRONG_CHOICE = "which is not the answer."  # the end of compare_choice's sentence for a wrong pick
 _RESULTS: dict[str, bool] = {}
 
@@ -60,11 +81,6 @@ def passed(exercise: str) -> bool:
 def reset() -> None:
     """Forget every recorded verdict."""
     _RESULTS.clear()
-
-
-def is_placeholder(answer) -> bool:
-    """True for the stubs' placeholders: ``...`` (Ellipsis) and ``None``."""
-    return answer is ... or answer is None
 
 
 def verdict(exercise: str, problem: str | None, *, correct: str = "", hint: str = "") -> bool:
@@ -91,20 +107,58 @@ def verdict(exercise: str, problem: str | None, *, correct: str = "", hint: str 
     return ok
 
 
-def check(exercise: str):
+def check(exercise: str, **answers):
     """Decorator for a chapter's ``check_…`` function of ``exercise`` (e.g. ``"6.2"``).
 
+    ``answers`` declares the kind of each answer the check takes (see
+    :mod:`lagolib.exercises._coerce`), e.g. ``@check("2.3", n_blocks=Int(), null_dim=Int())``;
+    the other arguments (a graph the chapter built, …) are passed on as they are.  Before the
+    body runs, every declared answer that is not a placeholder is read as its kind, so the body
+    gets a clean value (a student's function becomes a
+    :class:`~lagolib.exercises._coerce.StudentFunction`, whose result :func:`call_student`
+    reads); an answer of another kind is reported "not yet" with a sentence naming the kind asked
+    for — every such answer at once, before the body computes anything (so a prediction's check
+    prints the computed values only for an answer of the right kind).  Placeholders are left to
+    the body, which reports them "not attempted yet".
+
     Whatever the answer is, the check prints a verdict and returns a bool: an exception the
-    check's own code meets while reading an odd answer (a ragged list, an object whose ``repr``
-    raises, …) becomes a "not yet" naming what it could not read.  The exercise id is kept as
-    the wrapper's ``exercise`` attribute.
+    check's own code meets while reading an odd answer becomes a "not yet" naming what it could
+    not read.  The exercise id is kept as the wrapper's ``exercise`` attribute and the declared
+    kinds as its ``answers`` attribute.
     """
 
     def decorate(fn):
+        sig = inspect.signature(fn)
+        unknown = sorted(set(answers) - set(sig.parameters))
+        if unknown:
+            raise TypeError(f"check({exercise!r}): {fn.__name__} has no argument {unknown}")
+
         @functools.wraps(fn)
         def wrapper(*args, **kwargs):
             try:
+                try:
+                    bound = sig.bind(*args, **kwargs)
+                except TypeError:
+                    bound = None  # called with the wrong arguments: fn says how, below
+                if bound is not None:
+                    problems, hint = [], ""
+                    for name, kind in answers.items():
+                        value = bound.arguments.get(name, ...)
+                        if is_placeholder(value):
+                            continue
+                        try:
+                            bound.arguments[name] = kind.prepare(value, name)
+                        except WrongKind as exc:
+                            problems.append(str(exc))
+                            hint = hint or exc.hint
+                    if problems:
+                        return verdict(exercise, " ".join(problems), hint=hint)
+                    args, kwargs = bound.args, bound.kwargs
                 result = fn(*args, **kwargs)
+            except _Placeholder:
+                return verdict(exercise, NOT_ATTEMPTED)
+            except WrongKind as exc:
+                return verdict(exercise, str(exc), hint=exc.hint)
             except Exception as exc:  # a student's odd answer is feedback, never a traceback
                 detail = str(exc)
                 detail = detail if len(detail) <= 120 else detail[:117] + "..."
@@ -118,6 +172,7 @@ def check(exercise: str):
             return bool(result)
 
         wrapper.exercise = str(exercise)
+        wrapper.answers = dict(answers)
         return wrapper
 
     return decorate
@@ -133,8 +188,14 @@ def call_student(fn, *args, name: str = "your function", **kwargs):
 
     ``problem`` is None when the call returned something other than a placeholder; otherwise it is
     :data:`NOT_ATTEMPTED` (the function still returns ``...``/``None``, or is itself ``...``) or a
-    sentence naming the exception the function raised or why it cannot be called.
+    sentence naming the exception the function raised or why it cannot be called.  For a
+    function that :func:`check` handed over (declared ``Function(returns=…)``) the result is
+    read as that kind: ``value`` is the clean value, and a result of another kind is a
+    ``problem`` naming the kind asked for.
     """
+    spec = None
+    if isinstance(fn, StudentFunction):
+        spec, fn = fn.spec, fn.fn
     if is_placeholder(fn):
         return None, NOT_ATTEMPTED
     if not callable(fn):
@@ -145,6 +206,8 @@ def call_student(fn, *args, name: str = "your function", **kwargs):
         return None, f"{name} raised {type(exc).__name__}: {exc}"
     if is_placeholder(value):
         return None, NOT_ATTEMPTED
+    if spec is not None:
+        return spec.read(value, name, args, kwargs)
     return value, None
 
 
@@ -181,28 +244,23 @@ def compare_array(
 ) -> str | None:
     """None if ``got`` equals ``expected`` within ``atol + rtol·|expected|``, else what differs.
 
-    Diagnoses the usual slips: a placeholder, a wrong shape (or a transpose), NaN/inf, a flipped
-    sign, a transpose of a square matrix, and — with ``angles=True`` — angles that differ by a
-    multiple of 2π (compared wrapped, and reported as a missing wrap).
+    ``got`` is read as an array of real numbers (:class:`~lagolib.exercises._coerce.RealArray`:
+    complex, text, bool, object, sparse or masked answers, None inside a list, a ragged list, NaN
+    are each named as such).  Diagnoses the usual slips: a placeholder, a wrong shape (or a
+    transpose), a flipped sign, a transpose of a square matrix, and — with ``angles=True`` —
+    angles that differ by a multiple of 2π (compared wrapped, and reported as a missing wrap).
     """
     if is_placeholder(got):
         return NOT_ATTEMPTED
-    if isinstance(got, (str, bytes)):
-        return f"{name} should be numbers (an array of shape {np.shape(expected)}), got a string."
-    try:
-        g = np.asarray(got, dtype=float)
-    except (TypeError, ValueError):
-        return (
-            f"{name} should be numbers (an array of shape {np.shape(expected)}), got {show(got)}."
-        )
     e = np.asarray(expected, dtype=float)
+    try:
+        g = RealArray(e.shape).coerce(got, name)
+    except WrongKind as exc:
+        return str(exc)
     if g.shape != e.shape:
         if g.size == e.size and g.T.shape == e.shape:
             return f"{name} has shape {g.shape}, expected {e.shape}: transposed?"
         return f"{name} has shape {g.shape}, expected {e.shape}."
-    if not np.all(np.isfinite(g)):
-        bad = np.argwhere(~np.isfinite(g))[0]
-        return f"{name} has a non-finite value ({g[tuple(bad)]}) at index {tuple(int(i) for i in bad)}."
     diff = g - e
     if angles:
         wrapped = (diff + np.pi) % (2 * np.pi) - np.pi
@@ -237,19 +295,20 @@ def compare_array(
 def compare_number(
     got, expected: float, *, name: str = "your answer", rtol: float = 1e-7, atol: float = 1e-9
 ) -> str | None:
-    """None if the number ``got`` equals ``expected`` within the tolerance, else what differs."""
+    """None if the number ``got`` equals ``expected`` within the tolerance, else what differs.
+
+    ``got`` is read as one real number (:class:`~lagolib.exercises._coerce.Real`): a bool, a
+    string (also ``"3.0"``), a complex number, a list or an array is named as such; NaN and ±inf
+    are reported as such.
+    """
     if is_placeholder(got):
         return NOT_ATTEMPTED
-    if isinstance(got, (str, bytes)):
-        return f"{name} should be a number, got the string {show(got)}."
-    if isinstance(got, bool) or not np.isscalar(got) and np.ndim(got) != 0:
-        return f"{name} should be one number, got {show(got)}."
     try:
-        g = float(got)
-    except (TypeError, ValueError):
-        return f"{name} should be a number, got {show(got)}."
+        g = Real(finite=False).coerce(got, name)
+    except WrongKind as exc:
+        return str(exc)
     if not np.isfinite(g):
-        return f"{name} is {g}."
+        return f"{name} is {g}: it should be one real number, a finite one."
     if abs(g - expected) <= atol + rtol * abs(expected):
         return None
     rel = f" ({abs(g - expected) / abs(expected):.2g} relative)" if expected else ""
@@ -258,43 +317,52 @@ def compare_number(
 
 @_never_raises
 def compare_int(got, expected: int, *, name: str = "your answer") -> str | None:
-    """None if ``got`` is the integer ``expected``, else what differs (too many / too few)."""
+    """None if ``got`` is the integer ``expected``, else what differs (too many / too few).
+
+    ``got`` is read as a whole number (:class:`~lagolib.exercises._coerce.Int`): ``5.0`` is 5;
+    a bool, a string, a complex number or ``5.5`` is named as such.
+    """
     if is_placeholder(got):
         return NOT_ATTEMPTED
-    if isinstance(got, bool) or not isinstance(got, (int, np.integer)):
-        if isinstance(got, (float, np.floating)) and float(got).is_integer():
-            got = int(got)
-        else:
-            return f"{name} should be a whole number, got {show(got)}."
-    if int(got) == int(expected):
+    try:
+        got = Int().coerce(got, name)
+    except WrongKind as exc:
+        return str(exc)
+    if got == int(expected):
         return None
     more = "more" if got > expected else "fewer"
-    return (
-        f"{name} is {int(got)}: that is {abs(int(got) - int(expected))} {more} than the reference."
-    )
-
-
-_DASHES = str.maketrans({c: "-" for c in "\u2010\u2011\u2012\u2013\u2014\u2212"})
+    return f"{name} is {got}: that is {abs(got - int(expected))} {more} than the reference."
 
 
 @_never_raises
 def compare_choice(got, expected, choices, *, name: str = "your answer") -> str | None:
     """None if ``got`` is the choice ``expected``.
 
+    Choices that are all True/False read ``got`` as :class:`~lagolib.exercises._coerce.Bool`
+    (``1`` is not ``True`` here), choices that are all strings as
+    :class:`~lagolib.exercises._coerce.Choice` (bytes, a list, a number are named as such).
     Strings are compared ignoring case, repeated spaces, and the difference between a hyphen,
     the dashes a rendered page shows (‐ ‑ ‒ – — −) and a space: ``"Gauss–Newton"`` as printed in a
     chapter is the choice ``"Gauss-Newton"``.
     """
     if is_placeholder(got):
         return NOT_ATTEMPTED
+    if all(isinstance(c, (bool, np.bool_)) for c in choices):
+        kind = Bool()
+    elif all(isinstance(c, str) for c in choices):
+        kind = Choice(choices)
+    else:
+        kind = None
+    if kind is not None:
+        try:
+            got = kind.coerce(got, name)
+        except WrongKind as exc:
+            return str(exc)
 
     def norm(x):
         # "Gauss–Newton" (en dash, as the chapters print it), "gauss-newton", " Gauss  Newton":
         # the same choice; only hyphens, dashes, spaces and case are normalized
-        if not isinstance(x, str):
-            return x
-        x = x.translate(_DASHES).replace("-", " ")
-        return " ".join(x.lower().split())
+        return normalize_choice(x) if isinstance(x, str) else x
 
     def same(a, b):
         # a numpy array or an odd object compares elementwise or raises: it is not a choice
@@ -310,26 +378,17 @@ def compare_choice(got, expected, choices, *, name: str = "your answer") -> str 
     return f"{name} is {show(got)}, {WRONG_CHOICE}"
 
 
-def show(value, width: int = 80) -> str:
-    """``repr(value)`` cut to ``width`` characters, whatever ``value`` is (a repr may raise)."""
-    try:
-        text = repr(value)
-    except Exception:  # a student's object whose repr raises
-        text = f"<{type(value).__name__}>"
-    return text if len(text) <= width else text[: width - 3] + "..."
-
-
 def matches(got, expected, tol: float = 1e-9) -> bool:
     """Whether ``got`` is the array ``expected`` to ``tol`` (relative to its largest entry).
 
     For recognizing a particular wrong answer (a transpose, a missing term); False for anything
-    that is not an array of the same shape.
+    that is not an array of real numbers of the same shape.
     """
     try:
-        g = np.asarray(got, dtype=float)
+        g = RealArray().coerce(got)
         e = np.asarray(expected, dtype=float)
         return g.shape == e.shape and bool(
             np.all(np.abs(g - e) <= tol * max(1.0, float(np.abs(e).max(initial=0.0))))
         )
-    except (TypeError, ValueError):
+    except (WrongKind, TypeError, ValueError):
         return False

@@ -14,12 +14,12 @@ The check prints one line starting ``Exercise 0.1`` (correct / not yet / not att
 from __future__ import annotations
 
 from lagolib import PoseGraph, simulate, topology
+from lagolib.exercises._coerce import Int, Shape
 from lagolib.exercises._feedback import (
     NOT_ATTEMPTED,
     check,
     compare_int,
     is_placeholder,
-    show,
     verdict,
 )
 
@@ -31,18 +31,12 @@ def notation_graph() -> PoseGraph:
     return simulate.loop_world(laps=3, poses_per_lap=4).graph
 
 
-def _shape(value):
-    """``value`` as a tuple of ints, or None when it is not a shape."""
-    try:
-        shape = tuple(value)
-        if all(int(k) == k for k in shape):
-            return tuple(int(k) for k in shape)
-    except (TypeError, ValueError):
-        pass
-    return None
-
-
-@check("0.1")
+@check(
+    "0.1",
+    n_unknown=Int(),
+    A_shape=Shape(2, "a shape, a tuple of 2 whole numbers (rows, columns)"),
+    state_length=Int(),
+)
 def check_notation(n_unknown, A_shape, state_length):
     """Exercise 0.1: counts for :func:`notation_graph` in the sources' notations.
 
@@ -56,6 +50,8 @@ def check_notation(n_unknown, A_shape, state_length):
     ----------
     n_unknown : int
     A_shape : tuple of two ints
+        Also a list or a 1-d integer array (``A.shape`` as numpy gives it); a dict, a set, a
+        string, bools or fractions are reported as not a shape.
     state_length : int
 
     Returns
@@ -78,12 +74,8 @@ def check_notation(n_unknown, A_shape, state_length):
                 "nodes, and n counts the poses to estimate."
             )
         problems.append(wrong)
-    shape = _shape(A_shape)
-    if shape is None:
-        problems.append(
-            f"A_shape should be a pair of whole numbers (rows, columns), got {show(A_shape)}."
-        )
-    elif shape != A:
+    shape = A_shape  # read by @check as a tuple of two ints
+    if shape != A:
         if shape == (nodes, m):
             problems.append(
                 f"A_shape = {shape} is the shape of 𝒜, the full incidence matrix: A drops the "

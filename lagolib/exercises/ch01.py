@@ -21,8 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from lagolib import PoseGraph, chi2, residuals, se2, simulate, write_toro
+from lagolib.exercises._coerce import Bool, Choice, Function, Real, RealArray
 from lagolib.exercises._feedback import (
     NOT_ATTEMPTED,
+    WRONG_CHOICE,
     call_student,
     check,
     compare_array,
@@ -125,7 +127,7 @@ _EDGE_HINT = (
 )
 
 
-@check("1.1")
+@check("1.1", edge_error=Function(RealArray((3,))))
 def check_edge_error(edge_error) -> bool:
     """Exercise 1.1: the error of one edge, ``e_ij = t2v(Z_ij⁻¹ (X_i⁻¹ X_j))``.
 
@@ -152,20 +154,19 @@ def check_edge_error(edge_error) -> bool:
     got = np.empty_like(expected)
     for k in range(len(p_i)):
         args = (p_i[k].copy(), p_j[k].copy(), z[k].copy())
+        # the result is read as an array of real numbers (complex, text, … are named as such)
         value, problem = call_student(edge_error, *args, name="edge_error")
-        if problem is None:
+        if problem is None and value.shape != (3,):
             problem = compare_array(
                 value, expected[k], name=f"edge_error(p_i, p_j, z) for edge {k}", angles=True
             )
-            if problem is not None and problem != NOT_ATTEMPTED and np.shape(value) == (3,):
-                problem = None  # a wrong value: diagnosed below on all edges together
         if problem is not None:
             if problem != NOT_ATTEMPTED:
                 problem += f"\n    (edge {k}: p_i = {args[0]}, p_j = {args[1]}, z = {args[2]})"
             return verdict(
-                ex, problem, hint="return a numpy array of 3 numbers (x, y, θ) for one edge."
+                ex, problem, hint="return a numpy array of 3 real numbers (x, y, θ) for one edge."
             )
-        got[k] = np.asarray(value, dtype=float)
+        got[k] = value  # a wrong value is diagnosed below, on all edges together
 
     problem = compare_array(got, expected, name="edge_error's output", angles=True)
     if problem is None:
@@ -251,7 +252,7 @@ def _heading_noise_reference(trials=4000, seed=5):
     return d8, d80, d8_double
 
 
-@check("1.2")
+@check("1.2", distance_ratio=Real(), growth_with_sigma=Choice(GROWTH_WITH_SIGMA))
 def check_heading_noise(distance_ratio, growth_with_sigma) -> bool:
     """Exercise 1.2: heading noise and how far from its start a closed loop ends.
 
@@ -298,18 +299,8 @@ def check_heading_noise(distance_ratio, growth_with_sigma) -> bool:
             )
     if problem is not None:
         problems.append(problem)
-    try:
-        r = float(distance_ratio)
-    except (TypeError, ValueError):
-        r = None
-    if (
-        r is None
-        or isinstance(distance_ratio, (bool, str, bytes))
-        or np.ndim(distance_ratio) != 0
-        or not np.isfinite(r)
-    ):
-        problems.append(f"distance_ratio should be one number, got {distance_ratio!r:.80}.")
-    elif abs(r - ratio) > 0.15 * ratio:
+    r = distance_ratio  # read by @check as one finite real number
+    if abs(r - ratio) > 0.15 * ratio:
         problem = f"distance_ratio is {r:.3g}; the simulation gives {ratio:.2f}."
         if abs(r - 10.0) <= 1.5:
             problem += (
@@ -369,7 +360,7 @@ def chi2_by_laps(max_laps=6, worlds=12, poses_per_lap=40):
     return table.mean(axis=0), odometric
 
 
-@check("1.3")
+@check("1.3", chi2_one_lap=Real(), growth=Choice(GROWTH_WITH_LAPS))
 def check_chi2_laps(chi2_one_lap, growth) -> bool:
     """Exercise 1.3: how χ² at the odometry guess grows with the number of laps.
 
@@ -401,21 +392,13 @@ def check_chi2_laps(chi2_one_lap, growth) -> bool:
         + f"; odometric edges alone ≤ {odometric:.1e}."
     )
     problems = []
-    if isinstance(chi2_one_lap, bool) or np.ndim(chi2_one_lap) != 0:
-        problems.append(f"chi2_one_lap should be one number, got {chi2_one_lap!r:.80}.")
-    else:
-        try:
-            value = float(chi2_one_lap)
-        except (TypeError, ValueError):
-            value = None
-        if value is None or not np.isfinite(value):
-            problems.append(f"chi2_one_lap should be a finite number, got {chi2_one_lap!r:.80}.")
-        elif abs(value - mean[0]) > 1e-6:
-            problems.append(
-                f"chi2_one_lap is {value:.4g}, but one lap has χ² = {mean[0]:.1e} at its odometry "
-                "guess. The odometry guess composes the odometric measurements, so every odometric "
-                "error is zero, and one lap has no loop closure."
-            )
+    value = chi2_one_lap  # read by @check as one finite real number
+    if abs(value - mean[0]) > 1e-6:
+        problems.append(
+            f"chi2_one_lap is {value:.4g}, but one lap has χ² = {mean[0]:.1e} at its odometry "
+            "guess. The odometry guess composes the odometric measurements, so every odometric "
+            "error is zero, and one lap has no loop closure."
+        )
     problem = compare_choice(growth, expected_growth, GROWTH_WITH_LAPS, name="growth")
     if problem is not None and not problem.startswith("growth should be one of"):
         problem = (
@@ -488,7 +471,7 @@ def _relative_change(a, b):
     return float(np.abs(a - b).max() / np.abs(b[:, :2, :2]).max())
 
 
-@check("1.4")
+@check("1.4", same_isotropic=Bool(), same_anisotropic=Bool())
 def check_toro_frames(same_isotropic, same_anisotropic) -> bool:
     """Exercise 1.4: does a TORO file hold the same information matrices as the g2o file?
 
@@ -538,7 +521,7 @@ def check_toro_frames(same_isotropic, same_anisotropic) -> bool:
     ]:
         expected = change <= 1e-9
         problem = compare_choice(got, expected, (True, False), name=name)
-        if problem is not None and not problem.startswith(f"{name} should be one of"):
+        if problem is not None and problem.endswith(WRONG_CHOICE):
             problem = f"{name} is {got!r}, but the file's matrices " + (
                 f"are the same: {why_same}" if expected else f"differ: {why_not}"
             )

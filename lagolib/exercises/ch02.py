@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from lagolib import PoseGraph, datasets, optimize, se2
+from lagolib.exercises._coerce import Bool, Choice, Function, Int, RealArray, Tuple
 from lagolib.exercises._feedback import (
     NOT_ATTEMPTED,
     call_student,
@@ -56,16 +57,6 @@ def _close(a, b, rtol=_RTOL, atol=_ATOL) -> bool:
     return a.shape == b.shape and bool(np.all(np.abs(a - b) <= atol + rtol * np.abs(b)))
 
 
-def _pair(out, n, what):
-    """``out`` as a tuple of ``n`` items, or the sentence saying why it is not one."""
-    if isinstance(out, (tuple, list)) or (isinstance(out, np.ndarray) and out.ndim >= 1):
-        if len(out) == n:
-            return tuple(out), None
-    sized = isinstance(out, (tuple, list)) or (isinstance(out, np.ndarray) and out.ndim >= 1)
-    size = f" of length {len(out)}" if sized else ""
-    return None, f"it should return {what}; it returned a {type(out).__name__}{size}."
-
-
 # ----------------------------------------------------------------------------- exercise 2.1
 def _jacobian_cases():
     """Five seeded edges ``(p_i, p_j, z)``: positions within ±5 m, any headings."""
@@ -98,15 +89,9 @@ def _finite_differences(p_i, p_j, z, h=1e-6):
 def _jacobian_problem(A, B, p_i, p_j, z):
     """None if ``(A, B)`` are the blocks of the edge, else the sentence saying what is wrong."""
     _, A_ref, B_ref = edge_jacobians(p_i, p_j, z)
-    for name, got in (("A_ij", A), ("B_ij", B)):
-        if is_placeholder(got):
-            return NOT_ATTEMPTED
-        try:
-            shape = np.shape(np.asarray(got, dtype=float))
-        except (TypeError, ValueError):
-            return f"{name} should be a 3x3 array of numbers, got {got!r:.80}."
-        if shape != (3, 3):
-            return f"{name} has shape {shape}, expected (3, 3)."
+    for name, got in (("A_ij", A), ("B_ij", B)):  # float arrays, read by call_student
+        if got.shape != (3, 3):
+            return f"{name} has shape {got.shape}, expected (3, 3)."
     if _close(A, B_ref) and _close(B, A_ref):
         return (
             "A and B are swapped: A_ij = de/dx_i is the block with the extra third column "
@@ -139,7 +124,12 @@ def _jacobian_problem(A, B, p_i, p_j, z):
     return None
 
 
-@check("2.1")
+_BLOCKS = Tuple(
+    RealArray((3, 3)), RealArray((3, 3)), names=("A_ij", "B_ij"), what="two 3x3 arrays, (A, B)"
+)
+
+
+@check("2.1", jacobian_blocks=Function(_BLOCKS))
 def check_jacobians(jacobian_blocks) -> bool:
     """Exercise 2.1: the Jacobian blocks of one edge.
 
@@ -167,8 +157,6 @@ def check_jacobians(jacobian_blocks) -> bool:
             jacobian_blocks, p_i.copy(), p_j.copy(), z.copy(), name="jacobian_blocks"
         )
         if problem is None:
-            out, problem = _pair(out, 2, "two 3x3 arrays, (A, B)")
-        if problem is None:
             problem = _jacobian_problem(*out, p_i, p_j, z)
         if problem is not None:
             if problem != NOT_ATTEMPTED:
@@ -178,7 +166,7 @@ def check_jacobians(jacobian_blocks) -> bool:
                 )
                 problem = where + problem
             return verdict("2.1", problem, hint=hint)
-        A, B = (np.asarray(x, dtype=float) for x in out)
+        A, B = out
         _, A_ref, B_ref = edge_jacobians(p_i, p_j, z)
         A_fd, B_fd = _finite_differences(p_i, p_j, z)
         worst_ref = max(worst_ref, np.abs(A - A_ref).max(), np.abs(B - B_ref).max())
@@ -277,7 +265,15 @@ def _contribution_mistakes(e, A, B, W):
     }
 
 
-@check("2.2")
+_CONTRIBUTION = Tuple(
+    *[RealArray((3, 3))] * 3,
+    *[RealArray((3,))] * 2,
+    names=("H_ii", "H_ij", "H_jj", "b_i", "b_j"),
+    what="five arrays, (H_ii, H_ij, H_jj, b_i, b_j)",
+)
+
+
+@check("2.2", edge_contribution=Function(_CONTRIBUTION))
 def check_edge_contribution(edge_contribution) -> bool:
     """Exercise 2.2: what one edge adds to ``H`` and ``b``.
 
@@ -304,16 +300,12 @@ def check_edge_contribution(edge_contribution) -> bool:
             edge_contribution, e.copy(), A.copy(), B.copy(), omega.copy(), name="edge_contribution"
         )
         if problem is None:
-            out, problem = _pair(out, 5, "five arrays, (H_ii, H_ij, H_jj, b_i, b_j)")
-        if problem is None:
             refs = _reference_contribution(p_i, p_j, z, omega)
             mistakes = _contribution_mistakes(e, A, B, omega)
             for name, got, ref in zip(names, out, refs):
                 problem = compare_array(got, ref, name=name)
                 if problem is None:
-                    worst = max(
-                        worst, np.abs(np.asarray(got, float) - ref).max() / np.abs(ref).max()
-                    )
+                    worst = max(worst, np.abs(got - ref).max() / np.abs(ref).max())
                     continue
                 if problem == NOT_ATTEMPTED:
                     break
@@ -367,7 +359,7 @@ def _structure(graph):
     return blocks, null
 
 
-@check("2.3")
+@check("2.3", n_blocks=Int(), null_dim=Int())
 def check_structure(n_blocks, null_dim) -> bool:
     """Exercise 2.3: predict the structure of ``H`` for :func:`structure_graph` (nothing fixed).
 
@@ -400,7 +392,7 @@ def check_structure(n_blocks, null_dim) -> bool:
             + g.m: "each pair of joined poses fills two off-diagonal blocks, and parallel edges "
             "share them",
             g.n * g.n: "H is sparse: block (i, j) is non-zero only when an edge joins i and j",
-        }.get(int(n_blocks) if isinstance(n_blocks, (int, np.integer)) else None)
+        }.get(n_blocks)
         hints.append(
             why or "count the diagonal blocks, then two blocks per pair of poses that an edge joins"
         )
@@ -411,7 +403,7 @@ def check_structure(n_blocks, null_dim) -> bool:
             3: "3 is right for one connected component; this graph has two, and each can be moved "
             "rigidly on its own",
             0: "with nothing fixed, a rigid motion of all poses changes no error, so H is singular",
-        }.get(int(null_dim) if isinstance(null_dim, (int, np.integer)) else None)
+        }.get(null_dim)
         hints.append(
             why
             or "a planar rigid motion has 3 degrees of freedom (x, y, rotation); how "
@@ -450,7 +442,10 @@ def damping_sweep(graph=None, lambdas=DAMPING_LAMBDAS):
     return out
 
 
-@check("2.4")
+_TRENDS = ("more", "fewer", "same")
+
+
+@check("2.4", trend=Choice(_TRENDS), same_optimum=Bool())
 def check_damping(trend, same_optimum) -> bool:
     """Exercise 2.4: Levenberg–Marquardt's initial damping, explored on ``square_loop``.
 
@@ -470,15 +465,13 @@ def check_damping(trend, same_optimum) -> bool:
     table = ", ".join(f"{lam:.0e}: {it}" for lam, it, _ in sweep)
     actual = f"iterations per lambda_initial {table}; final chi2 spread {spread:.1e} relative."
     problems, hints = [], []
-    p = compare_choice(trend, expected_trend, ["more", "fewer", "same"], name="trend")
+    p = compare_choice(trend, expected_trend, _TRENDS, name="trend")
     if p is not None:
         problems.append(p)
         hints.append(
             "compare the iterations printed for the smallest and the largest lambda_initial; a "
             "large lambda I swamps H, so the first steps are short gradient steps"
         )
-    if isinstance(same_optimum, (bool, np.bool_)):
-        same_optimum = bool(same_optimum)
     p = compare_choice(same_optimum, expected_same, [True, False], name="same_optimum")
     if p is not None:
         problems.append(p)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from lagolib import PoseGraph, topology
+from lagolib.exercises._coerce import Bool, Choice, Function, Int, RealArray
 from lagolib.exercises._feedback import (
     NOT_ATTEMPTED,
     WRONG_CHOICE,
@@ -29,7 +30,6 @@ from lagolib.exercises._feedback import (
     compare_choice,
     compare_int,
     is_placeholder,
-    show,
     verdict,
 )
 
@@ -52,15 +52,6 @@ def _graph(n_nodes, edges):
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     m = len(edges)
     return PoseGraph(np.zeros((n_nodes, 3)), edges, np.zeros((m, 3)), np.tile(np.eye(3), (m, 1, 1)))
-
-
-def _whole(value) -> bool:
-    """Whether ``value`` is a whole number (an int, or a float such as 7.0), not a bool."""
-    if isinstance(value, bool):
-        return False
-    if isinstance(value, (int, np.integer)):
-        return True
-    return isinstance(value, (float, np.floating)) and float(value).is_integer()
 
 
 def _edge_list(edges):
@@ -91,13 +82,9 @@ def incidence_cases(seed=4):
 
 
 def _incidence_problem(got, expected, n_nodes, edges):
-    """None if ``got`` is the incidence matrix ``expected``; otherwise what is wrong with it."""
-    if hasattr(got, "toarray"):  # a scipy.sparse matrix is fine
-        got = got.toarray()
-    try:
-        g = np.asarray(got, dtype=float)
-    except (TypeError, ValueError):
-        return f"incidence should return an array of numbers, got {type(got).__name__}."
+    """None if ``got`` (a float array: call_student read it, dense) is the incidence matrix
+    ``expected``; otherwise what is wrong with it."""
+    g = got
     m = len(edges)
     if g.shape != expected.shape:
         if g.shape == (n_nodes - 1, m):
@@ -122,8 +109,6 @@ def _incidence_problem(got, expected, n_nodes, edges):
                 f"node × edge, shape ({n_nodes}, {m}), one column per edge."
             )
         return f"your matrix has shape {g.shape}, expected ({n_nodes}, {m}) = (nodes, edges)."
-    if not np.all(np.isfinite(g)):
-        return "your matrix has non-finite entries."
     if np.array_equal(g, expected):
         return None
     if g.shape[0] == g.shape[1] and np.array_equal(g, expected.T):
@@ -155,7 +140,7 @@ def _incidence_problem(got, expected, n_nodes, edges):
     )
 
 
-@check("4.1")
+@check("4.1", incidence=Function(RealArray(("n_nodes", "m"), sparse=True)))
 def check_incidence(incidence) -> bool:
     """Exercise 4.1: the incidence matrix 𝒜 of a directed graph (Carlone et al. 2011, §II).
 
@@ -213,7 +198,7 @@ PREDICT_EDGES = (
 )  # fmt: skip
 
 
-@check("4.2")
+@check("4.2", n_tree_edges=Int(), n_chords=Int())
 def check_chords(n_tree_edges, n_chords) -> bool:
     """Exercise 4.2: how many edges a spanning tree of the graph has, and how many chords remain.
 
@@ -255,44 +240,37 @@ def check_chords(n_tree_edges, n_chords) -> bool:
     problems = []
     wrong_tree = compare_int(n_tree_edges, n_tree, name="n_tree_edges")
     if wrong_tree is not None:
-        if wrong_tree.endswith("than the reference.") and int(n_tree_edges) == g.n:
+        if n_tree_edges == g.n:
             wrong_tree = (
                 f"n_tree_edges = {n_tree_edges} is the number of nodes, n + 1. A spanning tree "
                 f"has one edge fewer: n = {n_tree} (each node but the root hangs from its parent "
                 "by one edge)."
             )
-        elif wrong_tree.endswith("than the reference."):
+        else:
             wrong_tree += " A spanning tree has n = (number of nodes) − 1 edges."
         problems.append(wrong_tree)
     wrong_d = compare_int(n_chords, d, name="n_chords")
     if wrong_d is not None:
-        if not wrong_d.endswith("than the reference."):
-            pass  # not a whole number: compare_int said so
-        elif int(n_chords) == g.m - g.n:
+        if n_chords == g.m - g.n:
             wrong_d = (
                 f"n_chords = {n_chords} = m − (n + 1): the classic off-by-one. The tree has n = "
                 f"{n_tree} edges, not one per node, so d = m − n = {g.m} − {n_tree} = {d}."
             )
-        elif int(n_chords) == pairs - n_tree:
+        elif n_chords == pairs - n_tree:
             wrong_d = (
                 f"n_chords = {n_chords} leaves out the repeated measurements: {g.m} edges join "
                 f"only {pairs} distinct pairs, but a second edge between the same two poses is "
                 "a chord too (it closes a cycle of two edges)."
             )
-        elif int(n_chords) == g.m - n_tree + 1:
+        elif n_chords == g.m - n_tree + 1:
             wrong_d = (
                 f"n_chords = {n_chords} = m − n + 1 with the paper's n = {n_tree}: the '+ 1' "
                 f"belongs to lagolib's count, d = graph.m − graph.n + 1 = {g.m} − {g.n} + 1."
             )
         problems.append(wrong_d)
-    if (
-        problems
-        and _whole(n_tree_edges)
-        and _whole(n_chords)
-        and int(n_tree_edges) + int(n_chords) != g.m
-    ):
+    if problems and n_tree_edges + n_chords != g.m:
         problems.append(
-            f"Also, your two numbers add up to {int(n_tree_edges) + int(n_chords)}, but every "
+            f"Also, your two numbers add up to {n_tree_edges + n_chords}, but every "
             f"one of the m = {g.m} edges is either a tree edge or a chord."
         )
     if problems:
@@ -337,21 +315,23 @@ def circuit_trees(graph):
     ]
 
 
-def _circuit_array(got, expected):
-    """``(array, None)`` if ``got`` is an array shaped like ``expected``, else ``(None, problem)``."""
-    m = expected.size
+def _pair_of_edges_and_signs(got, *args):
+    """The sentence for a result that is a pair, like topology.fundamental_circuit's, or None."""
     if isinstance(got, tuple) and len(got) == 2:
-        return None, (
+        graph = args[0] if args else None
+        m = f"({graph.m},)" if isinstance(graph, PoseGraph) else "(m,)"
+        return (
             "your function returned a pair, like topology.fundamental_circuit's (edges, signs). "
-            f"The exercise asks for the circuit vector c itself: an array of shape ({m},), one "
-            "entry per edge of the graph (a row of 𝒞)."
+            f"The exercise asks for the circuit vector c itself: an array of real numbers of "
+            f"shape {m}, one entry per edge of the graph (a row of 𝒞)."
         )
-    if hasattr(got, "toarray"):  # a sparse row is fine
-        got = got.toarray().ravel()
-    try:
-        g = np.asarray(got, dtype=float)
-    except (TypeError, ValueError):
-        return None, f"circuit_vector should return an array of numbers, got {show(got)}."
+    return None
+
+
+def _circuit_array(g, expected):
+    """``(g, None)`` if the float array ``g`` is shaped like ``expected`` and holds only −1, 0,
+    +1, else ``(None, problem)``."""
+    m = expected.size
     if g.shape != expected.shape:
         return None, (
             f"your vector has shape {g.shape}; it should have one entry per edge of the graph, "
@@ -434,7 +414,10 @@ def _circuit_difference(g, e, chord, in_tree):
     )
 
 
-@check("4.3")
+@check(
+    "4.3",
+    circuit_vector=Function(RealArray(("graph.m",), sparse=True), explain=_pair_of_edges_and_signs),
+)
 def check_circuit_vector(circuit_vector) -> bool:
     """Exercise 4.3: the fundamental circuit of a chord as a signed edge vector (a row of 𝒞).
 
@@ -538,7 +521,7 @@ def worst_circuit_sigma(graph, kind, anchor=None, C=None):
     return float(sigma.max()) if sigma.size else 0.0
 
 
-@check("4.4")
+@check("4.4", safer_tree=Choice(("odometric", "bfs")), odometric_anchor_matters=Bool())
 def check_tree_exploration(safer_tree, odometric_anchor_matters, graph) -> bool:
     """Exercise 4.4: which tree's circuits carry less orientation noise; does the anchor matter?
 

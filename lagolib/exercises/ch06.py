@@ -29,6 +29,7 @@ import numpy as np
 from lagolib import PoseGraph, chi2, lago_solve, optimize, se2, simulate
 from lagolib import lago as L
 from lagolib.checks import check_int, check_real
+from lagolib.exercises._coerce import Bool, Choice, Function, Real, RealArray, Tuple
 from lagolib.exercises._feedback import (
     NOT_ATTEMPTED,
     call_student,
@@ -180,11 +181,11 @@ def _diagnose_frame(got, Omega, theta_z, expected):
         "left alone. Try your function on θ_z = π/2 and Ω = diag(100, 1, 10): the 100 must move "
         "to the y entry."
     )
-    if np.shape(got) == (2, 2):
+    if got.shape == (2, 2):
         return problem, "return the whole 3×3 information: the heading row and column too."
-    g = np.asarray(got, dtype=float) if np.shape(got) == (3, 3) else None
-    if g is None or not np.all(np.isfinite(g)):
+    if got.shape != (3, 3):
         return problem, hint
+    g = got  # a float array: call_student read it
     G = _rotation_block(theta_z)
     if _close(g, np.linalg.inv(expected), rtol=1e-6):
         return (
@@ -255,7 +256,7 @@ def _diagnose_frame(got, Omega, theta_z, expected):
     return problem, hint
 
 
-@check("6.1")
+@check("6.1", to_frame_i=Function(RealArray((3, 3))))
 def check_frame_i(to_frame_i):
     """Check exercise 6.1: ``to_frame_i(Omega, theta_z)``, one edge's information in frame ``i``.
 
@@ -287,7 +288,8 @@ def check_frame_i(to_frame_i):
                 ex,
                 problem,
                 hint="the check calls to_frame_i(Omega, theta_z) with Omega a (3, 3) array and "
-                "theta_z a float; try your function on such inputs to see the error.",
+                "theta_z a float, and expects a (3, 3) array of real numbers back; try your "
+                "function on such inputs.",
             )
         expected = se2.information_to_frame_i(Omega[None], [theta_z])[0]
         problem, hint = _diagnose_frame(got, Omega, theta_z, expected)
@@ -341,17 +343,7 @@ def _phase2_reference():
 def _diagnose_phase2(out, theta_i, Delta_l, Omega_Delta, Dg, Jr, Wr):
     """What is wrong with ``out = (Delta_g, J, W)``: (problem, hint), or (None, "")."""
     R = se2.rotation(theta_i)
-    if not isinstance(out, (tuple, list)) or len(out) != 3:
-        what = (
-            f"a {type(out).__name__} of length {len(out)}"
-            if isinstance(out, (tuple, list))
-            else f"a {type(out).__name__}"
-        )
-        return (
-            f"phase2_edge should return three things, (Delta_g, J, W); it returned {what}.",
-            "end the function with `return Delta_g, J, W`.",
-        )
-    got_Dg, got_J, got_W = out
+    got_Dg, got_J, got_W = out  # three float arrays: call_student read them
     # Δ^g, eq. (9)
     problem = compare_array(got_Dg, Dg, name="Delta_g")
     if problem is not None:
@@ -391,7 +383,17 @@ def _diagnose_phase2(out, theta_i, Delta_l, Omega_Delta, Dg, Jr, Wr):
     return None, ""
 
 
-@check("6.2")
+_PHASE2 = Tuple(
+    RealArray((2,)),
+    RealArray((2,)),
+    RealArray((2, 2)),
+    names=("Delta_g", "J", "W"),
+    what="three arrays, (Delta_g, J, W)",
+    hint="end the function with `return Delta_g, J, W`.",
+)
+
+
+@check("6.2", phase2_edge=Function(_PHASE2))
 def check_phase2_edge(phase2_edge):
     """Check exercise 6.2: ``phase2_edge(theta_i, Delta_l, Omega_Delta)``, phase 2 for one edge.
 
@@ -424,12 +426,11 @@ def check_phase2_edge(phase2_edge):
         if problem is not None:
             return verdict(
                 ex,
-                problem,
+                f"edge {k} ({i} -> {j}), θ̂_i = {theta_i:+.4f} rad: {problem}",
                 hint="the check calls phase2_edge(theta_i, Delta_l, Omega_Delta) with a float, "
-                "a (2,) and a (2, 2) array; try your function on such inputs to see the error.",
+                "a (2,) and a (2, 2) array, and expects `return Delta_g, J, W` (arrays of real "
+                "numbers of shapes (2,), (2,), (2, 2)); try your function on such inputs.",
             )
-        if isinstance(out, (tuple, list)) and any(is_placeholder(x) for x in out):
-            return verdict(ex, NOT_ATTEMPTED)
         problem, hint = _diagnose_phase2(out, theta_i, Delta_l, Omega_Delta, Dg, Jr, Wr)
         if problem is not None:
             where = f"edge {k} ({i} -> {j}), θ̂_i = {theta_i:+.4f} rad: "
@@ -446,7 +447,7 @@ def check_phase2_edge(phase2_edge):
 CLOSER_CHOICES = ("isotropic", "anisotropic", "same")
 
 
-@check("6.3")
+@check("6.3", closer=Choice(CLOSER_CHOICES))
 def check_closer(closer):
     """Check exercise 6.3: on which graph does LAGO land closer to the Gauss–Newton optimum?
 
@@ -496,7 +497,7 @@ def _sweep():
     return np.array(gaps), np.array(dists)
 
 
-@check("6.4")
+@check("6.4", gap_grows=Bool(), distance_grows=Bool(), gap_ratio=Real())
 def check_anisotropy_sweep(gap_grows, distance_grows, gap_ratio):
     """Check exercise 6.4: what the anisotropy sweep shows.
 
@@ -527,13 +528,6 @@ def check_anisotropy_sweep(gap_grows, distance_grows, gap_ratio):
     ratio = float(gaps[-1] / gaps[0])
     gap_txt = " → ".join(f"{v:.3g}" for v in gaps)
     dist_txt = " → ".join(f"{1e3 * v:.1f}" for v in dists)
-    for name, got in (("gap_grows", gap_grows), ("distance_grows", distance_grows)):
-        if not isinstance(got, (bool, np.bool_)):
-            return verdict(
-                ex,
-                f"{name} should be True or False, got {got!r:.60}.",
-                hint=f"write {name} = True or {name} = False.",
-            )
     if bool(gap_grows) != exp_gap:
         return verdict(
             ex,
@@ -558,13 +552,10 @@ def check_anisotropy_sweep(gap_grows, distance_grows, gap_ratio):
     problem = compare_number(gap_ratio, ratio, name="gap_ratio", rtol=0.05)
     if problem is not None:
         hint = "gap_ratio is the gap at ratio 64 divided by the gap at ratio 1."
-        try:
-            got = float(gap_ratio)
-        except (TypeError, ValueError):
-            got = None
-        if got is not None and abs(got * ratio - 1) <= 0.05:
+        got = gap_ratio  # read by @check as one finite real number
+        if abs(got * ratio - 1) <= 0.05:
             problem += " It is the inverse of the reference."
-        elif got is not None and np.isfinite(got):
+        else:
             # which two gaps of the table did the student divide?
             pairs = [
                 (a, b)

@@ -27,6 +27,7 @@ import numpy as np
 
 from lagolib import chi2, datasets, lago_solve, optimize, simulate
 from lagolib import closed_form as cf
+from lagolib.exercises._coerce import Choice, Function, Real, RealArray, Tuple
 from lagolib.exercises._feedback import (
     NOT_ATTEMPTED,
     call_student,
@@ -52,13 +53,6 @@ __all__ = [
     "DECIDES",
     "weighted_gap",
 ]
-
-
-def _choice(got, expected, choices, *, name):
-    """:func:`compare_choice` for string answers; any other type is reported, never raised on."""
-    if not is_placeholder(got) and not isinstance(got, str):
-        return f"{name} should be one of {list(choices)} (a string), got {got!r:.80}."
-    return compare_choice(got, expected, choices, name=name)
 
 
 def _close(got, expected, rtol=1e-7, atol=1e-9):
@@ -145,7 +139,7 @@ def _sincos_mistakes(p_i, p_j, delta):
     ]
 
 
-@check("7.1")
+@check("7.1", sincos_error=Function(RealArray((4,))))
 def check_sincos_error(sincos_error) -> bool:
     """Exercise 7.1: the error of one edge in ``(x, y, c, s)``, ``e_ij = f_ij − δ̂_ij``.
 
@@ -176,23 +170,18 @@ def check_sincos_error(sincos_error) -> bool:
     got = np.empty_like(expected)
     for k in range(len(p_i)):
         args = (p_i[k].copy(), p_j[k].copy(), delta[k].copy())
+        # the result is read as an array of real numbers (complex, text, … are named as such)
         value, problem = call_student(sincos_error, *args, name="sincos_error")
-        if problem is None:
+        if problem is None and value.shape != (4,):
             problem = compare_array(value, expected[k], name=f"sincos_error(...) for edge {k}")
-            if problem is not None and np.shape(value) == (4,):
-                try:
-                    got[k] = np.asarray(value, dtype=float)
-                    problem = None  # a wrong value: diagnosed below on all edges together
-                except (TypeError, ValueError):
-                    pass
         if problem is not None:
             if problem != NOT_ATTEMPTED:
                 problem += (
                     f"\n    (edge {k}: p_i = {np.round(args[0], 4)}, p_j = {np.round(args[1], 4)},"
                     f" delta_ij = {np.round(args[2], 4)})"
                 )
-            return verdict(ex, problem, hint="return a numpy array of 4 numbers for one edge.")
-        got[k] = np.asarray(value, dtype=float)
+            return verdict(ex, problem, hint="return a numpy array of 4 real numbers for one edge.")
+        got[k] = value  # a wrong value is diagnosed below, on all edges together
 
     if _close(got, expected):
         return verdict(
@@ -380,31 +369,24 @@ def _newton_mistakes(A, b, t, rho):
 
 
 def _unpack(value, n):
-    """``(t_new, rho_new)`` from a student's return value, or ``(None, problem)``."""
-    if not isinstance(value, (tuple, list)) or len(value) != 2:
-        what = f"a {type(value).__name__}" + (
-            f" of shape {np.shape(value)}" if isinstance(value, np.ndarray) else ""
-        )
-        return None, (
-            f"newton_step should return a pair (t_new, rho_new) of shapes ({2 * n},) and "
-            f"({n},); it returned {what}."
-        )
-    t_new, rho_new = value
-    if is_placeholder(t_new) or is_placeholder(rho_new):
-        return None, NOT_ATTEMPTED
-    for name, x, m in (("t_new", t_new, 2 * n), ("rho_new", rho_new, n)):
-        try:
-            a = np.asarray(x, dtype=float)
-        except (TypeError, ValueError):
-            return None, f"{name} should be numbers, got {x!r:.80}."
+    """``(t_new, rho_new)`` (two float arrays, as call_student read them) if their shapes are
+    ``(2n,)`` and ``(n,)``, or ``(None, problem)``."""
+    for name, a, m in (("t_new", value[0], 2 * n), ("rho_new", value[1], n)):
         if a.shape != (m,):
             return None, f"{name} has shape {a.shape}, expected ({m},)."
-        if not np.all(np.isfinite(a)):
-            return None, f"{name} has a non-finite value."
-    return (np.asarray(t_new, float), np.asarray(rho_new, float)), None
+    return value, None
 
 
-@check("7.2")
+_STEP = Tuple(
+    RealArray(("2n",)),
+    RealArray(("n",)),
+    names=("t_new", "rho_new"),
+    what="a pair (t_new, rho_new) of arrays of shapes (2n,) and (n,)",
+    hint="end the function with `return t_new, rho_new`.",
+)
+
+
+@check("7.2", newton_step=Function(_STEP))
 def check_newton_step(newton_step) -> bool:
     """Exercise 7.2: one Newton step on the orthogonality condition (Lodi Rizzini eq. 44–45, 1).
 
@@ -522,7 +504,7 @@ def weighted_gap(graph):
     return chi2(graph, closed.poses), chi2(graph, lag.poses), best.chi2
 
 
-@check("7.3")
+@check("7.3", prediction=Choice(GAP_BANDS))
 def check_closed_form_gap(prediction) -> bool:
     """Exercise 7.3: predict ``χ²(closed form) / χ²(optimum)`` of the weighted χ² on grid100.
 
@@ -543,7 +525,7 @@ def check_closed_form_gap(prediction) -> bool:
     ex = "7.3"
     if is_placeholder(prediction):
         return verdict(ex, NOT_ATTEMPTED)
-    problem = _choice(prediction, GAP_BANDS[0], GAP_BANDS, name="prediction")
+    problem = compare_choice(prediction, GAP_BANDS[0], GAP_BANDS, name="prediction")
     if problem is not None and problem.startswith("prediction should be one of"):
         return verdict(ex, problem, hint="write your prediction as one of the four strings.")
     g = datasets.example("grid100").graph
@@ -554,7 +536,7 @@ def check_closed_form_gap(prediction) -> bool:
         f"weighted χ² on grid100: closed form {closed:.4f}, LAGO {lag:.4f}, Gauss–Newton "
         f"{best:.4f}; closed form / optimum = {ratio:.3f} ({actual})"
     )
-    problem = _choice(prediction, actual, GAP_BANDS, name="your prediction")
+    problem = compare_choice(prediction, actual, GAP_BANDS, name="your prediction")
     if problem is None:
         return verdict(ex, None, correct=numbers + ".")
     why = {
@@ -564,7 +546,7 @@ def check_closed_form_gap(prediction) -> bool:
         GAP_BANDS[2]: "The gap is larger than that: the closed form trades the heavily weighted "
         "angular errors for position errors.",
         GAP_BANDS[3]: "The gap is smaller than that.",
-    }[prediction.strip().lower()]
+    }[prediction]  # one of GAP_BANDS, as @check read it
     return verdict(
         ex,
         f"you predicted {prediction!r}, but the {numbers}. {why}",
@@ -590,7 +572,7 @@ def _gap(sigma_xy, sigma_theta):
     return closed / best
 
 
-@check("7.4")
+@check("7.4", closest_sigma_theta=Real(), what_decides=Choice(DECIDES))
 def check_noise_gap(closest_sigma_theta, what_decides) -> bool:
     """Exercise 7.4: what decides how far the closed form is from the optimum.
 
@@ -614,30 +596,29 @@ def check_noise_gap(closest_sigma_theta, what_decides) -> bool:
     ex = "7.4"
     if is_placeholder(closest_sigma_theta) or is_placeholder(what_decides):
         return verdict(ex, NOT_ATTEMPTED)
-    problem = _choice(what_decides, "ratio", DECIDES, name="what_decides")
+    problem = compare_choice(what_decides, "ratio", DECIDES, name="what_decides")
     if problem is not None and problem.startswith("what_decides should be one of"):
         return verdict(ex, problem, hint='write "level" or "ratio".')
     gaps = np.array([_gap(SIGMA_XY, s) for s in SIGMA_SWEEP])
     best = SIGMA_SWEEP[int(np.argmin(gaps))]
     problem = compare_number(closest_sigma_theta, best, name="closest_sigma_theta", rtol=1e-9)
     if problem is not None:
-        number = isinstance(closest_sigma_theta, (int, float, np.integer, np.floating))
-        if number and not isinstance(closest_sigma_theta, bool):
-            hits = [k for k, s in enumerate(SIGMA_SWEEP) if np.isclose(s, closest_sigma_theta)]
-            if hits:
-                problem = (
-                    f"at σ_θ = {closest_sigma_theta} the closed form's χ² is {gaps[hits[0]]:.3f} "
-                    f"times the optimum's, not the smallest ratio in the sweep (that is "
-                    f"{gaps.min():.4f})."
-                )
-            else:
-                problem = (
-                    f"closest_sigma_theta should be one of the swept σ_θ {list(SIGMA_SWEEP)}, "
-                    f"got {closest_sigma_theta!r:.40}."
-                )
+        # closest_sigma_theta is one finite real number: @check read it
+        hits = [k for k, s in enumerate(SIGMA_SWEEP) if np.isclose(s, closest_sigma_theta)]
+        if hits:
+            problem = (
+                f"at σ_θ = {closest_sigma_theta} the closed form's χ² is {gaps[hits[0]]:.3f} "
+                f"times the optimum's, not the smallest ratio in the sweep (that is "
+                f"{gaps.min():.4f})."
+            )
+        else:
+            problem = (
+                f"closest_sigma_theta should be one of the swept σ_θ {list(SIGMA_SWEEP)}, "
+                f"got {closest_sigma_theta!r:.40}."
+            )
         return verdict(ex, problem, hint="read the σ_θ of the smallest ratio off the first table.")
     level_gap = max(abs(_gap(s, s) - 1.0) for s in SIGMA_SWEEP)  # the σ_θ = σ_xy sweep
-    if str(what_decides).strip().lower() != "ratio":
+    if what_decides != "ratio":  # one of DECIDES, as @check read it
         level = [_gap(s, s) for s in (SIGMA_SWEEP[0], SIGMA_SWEEP[-1])]
         return verdict(
             ex,

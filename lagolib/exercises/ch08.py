@@ -26,6 +26,7 @@ from functools import lru_cache
 import numpy as np
 
 from lagolib import lago_solve, optimize, se2, simulate
+from lagolib.exercises._coerce import Choice, Function, Real, Tuple
 from lagolib.exercises._feedback import (
     NOT_ATTEMPTED,
     call_student,
@@ -97,26 +98,14 @@ def _errors(graph, poses, *, frame="measurement", wrap=True):
 
 
 def _diagnose_eta(got, graph, poses, expected):
-    """(problem, hint) for a wrong ``(eta_c, eta_a)``; (None, "") when right."""
-    if not isinstance(got, (tuple, list)) or len(got) != 2:
-        what = (
-            f"a {type(got).__name__} of length {len(got)}"
-            if isinstance(got, (tuple, list))
-            else f"a {type(got).__name__}"
-        )
-        return (
-            f"eta should return two numbers, (eta_c, eta_a); it returned {what}.",
-            "end the function with `return eta_c, eta_a`.",
-        )
+    """(problem, hint) for a wrong ``(eta_c, eta_a)`` (two floats, as call_student read them);
+    (None, "") when right."""
     ec, ea = expected
     pc = compare_number(got[0], ec, name="eta_c", rtol=1e-6, atol=1e-15)
     pa = compare_number(got[1], ea, name="eta_a", rtol=1e-6, atol=1e-15)
     if pc is None and pa is None:
         return None, ""
-    try:
-        gc, ga = float(got[0]), float(got[1])
-    except (TypeError, ValueError):
-        return pc or pa, "return two floats."
+    gc, ga = got
 
     def near(x, y):
         return bool(np.isclose(x, y, rtol=1e-6, atol=1e-15))
@@ -184,7 +173,16 @@ def _diagnose_eta(got, graph, poses, expected):
     )
 
 
-@check("8.1")
+_ETA = Tuple(
+    Real(),
+    Real(),
+    names=("eta_c", "eta_a"),
+    what="two numbers, (eta_c, eta_a)",
+    hint="end the function with `return eta_c, eta_a`.",
+)
+
+
+@check("8.1", eta=Function(_ETA))
 def check_eta(eta):
     """Check exercise 8.1: ``eta(graph, poses)``, the constraint-satisfaction metrics.
 
@@ -214,10 +212,9 @@ def check_eta(eta):
                 ex,
                 problem,
                 hint="the check calls eta(graph, poses) with a lagolib.PoseGraph and an (n, 3) "
-                "array; try your function on such inputs to see the error.",
+                "array, and expects `return eta_c, eta_a` (two real numbers); try your function "
+                "on such inputs.",
             )
-        if isinstance(got, (tuple, list)) and any(is_placeholder(v) for v in got):
-            return verdict(ex, NOT_ATTEMPTED)
         expected = tuple(constraint_satisfaction(g, poses))
         problem, hint = _diagnose_eta(got, g, poses, expected)
         if problem is not None:
@@ -231,7 +228,7 @@ def check_eta(eta):
 
 
 # --------------------------------------------------------------------------- exercise 8.2
-@check("8.2")
+@check("8.2", smallest=Choice(SMALLEST_CHOICES))
 def check_smallest_sum(smallest, graph, sgd_poses):
     """Check exercise 8.2: with ``P_ij = I_3``, which estimate has the smallest ``eta_c + eta_a``?
 
@@ -325,7 +322,12 @@ def _trend(values):
     return "neither"
 
 
-@check("8.3")
+@check(
+    "8.3",
+    eta_c_trend=Choice(TREND_CHOICES),
+    eta_a_trend=Choice(TREND_CHOICES),
+    eta_a_ratio=Real(),
+)
 def check_weight_sweep(eta_c_trend, eta_a_trend, eta_a_ratio, graph):
     """Check exercise 8.3: the trends of ``eta_c``, ``eta_a`` as the angles' weight grows.
 
@@ -366,11 +368,7 @@ def check_weight_sweep(eta_c_trend, eta_a_trend, eta_a_ratio, graph):
             return verdict(ex, problem, hint=hint)
     problem = compare_number(eta_a_ratio, ratio, name="eta_a_ratio", rtol=0.05)
     if problem is not None:
-        try:
-            inv = np.isclose(float(eta_a_ratio), 1.0 / ratio, rtol=0.05)
-        except (TypeError, ValueError):
-            inv = False
-        if inv:
+        if np.isclose(eta_a_ratio, 1.0 / ratio, rtol=0.05):  # a float: @check read it
             problem = (
                 f"eta_a_ratio is {float(eta_a_ratio):.3g}, the inverse of the ratio asked for: "
                 f"eta_a at w = {WEIGHTS[0]} divided by eta_a at w = {WEIGHTS[-1]}."

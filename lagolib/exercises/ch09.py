@@ -28,6 +28,7 @@ from functools import lru_cache
 import numpy as np
 
 from lagolib import LagolibWarning, certify, se2, simulate
+from lagolib.exercises._coerce import Choice, Function, Int, Real, RealArray
 from lagolib.exercises._feedback import (
     NOT_ATTEMPTED,
     call_student,
@@ -91,28 +92,6 @@ def _diagnose_multipliers(got, M, x, expected):
     n = x.size // 2
     Mx = M @ x
     w = np.conj(x[n:]) * Mx[n:]
-    try:
-        g = np.asarray(got)
-    except Exception:  # noqa: BLE001 - an odd answer is feedback
-        g = None
-    if g is not None and np.iscomplexobj(g) and g.shape == expected.shape:
-        # a real answer in a complex array (zero imaginary part) is as good as a real one; at a
-        # stationary point conj(z_i) (M x)_{n+i} itself is real to rounding, so it passes there
-        # and is caught at the test point that is not stationary
-        if np.allclose(g.imag, 0, atol=1e-9 * max(1.0, np.abs(expected).max())):
-            got = g.real
-        elif np.allclose(g, w, rtol=1e-7, atol=1e-9):
-            return (
-                "your multipliers are complex: conj(z_i) (M x)_{n+i} itself. λ_i is its real "
-                "part (the imaginary part is the gradient along the circle, zero only at a "
-                "stationary point).",
-                "take .real of the product.",
-            )
-        else:
-            return (
-                "your multipliers are complex; λ_i is a real number, one per pose.",
-                "λ_i = Re(conj(z_i) (M x)_{n+i}).",
-            )
     problem = compare_array(got, expected, name="lambda", rtol=1e-7, atol=1e-9)
     if problem is None:
         return None, ""
@@ -149,7 +128,26 @@ def _diagnose_multipliers(got, M, x, expected):
     return problem, "λ_i = Re(conj(z_i) (M x)_{n+i}); x = [t; z], so z_i is x[n + i]."
 
 
-@check("9.1")
+def _complex_multipliers(got, M, x):
+    """The sentence for complex multipliers (which are real numbers), or None."""
+    if not (isinstance(got, np.ndarray) and np.iscomplexobj(got)):
+        return None
+    n = np.size(x) // 2
+    try:
+        w = np.conj(x[n:]) * (M @ x)[n:]
+        itself = got.shape == w.shape and np.allclose(got, w, rtol=1e-7, atol=1e-9)
+    except (TypeError, ValueError):
+        itself = False
+    return (
+        "your multipliers are complex"
+        + (": conj(z_i) (M x)_{n+i} itself. λ_i is its real part" if itself else "")
+        + " — multipliers should return an array of real numbers of shape (n,), one λ_i per "
+        "pose, even where the imaginary part is 0 (take .real: the imaginary part is the "
+        "gradient along the circle, zero only at a stationary point)."
+    )
+
+
+@check("9.1", multipliers=Function(RealArray(("n",)), explain=_complex_multipliers))
 def check_multipliers(multipliers):
     """Check exercise 9.1: ``multipliers(M, x)``, the Lagrange multipliers of ``|z_i|^2 = 1``.
 
@@ -174,18 +172,19 @@ def check_multipliers(multipliers):
         got, problem = call_student(multipliers, p.M.copy(), x.copy(), name="multipliers")
         if problem == NOT_ATTEMPTED:
             return verdict(ex, problem)
+        where = "a stationary point" if k == 0 else "the odometry (not stationary)"
         if problem is not None:
             return verdict(
                 ex,
-                problem,
+                f"on test {k + 1} of {len(cases)} ({where}): " + problem,
                 hint="the check calls multipliers(M, x) with a scipy.sparse complex matrix and a "
-                "complex numpy vector; try your function on certify.data_matrix(g) and "
-                "certify.to_complex(poses).",
+                "complex numpy vector, and expects a real array of shape (n,) back "
+                "(λ_i = Re(conj(z_i) (M x)_{n+i})); try your function on certify.data_matrix(g) "
+                "and certify.to_complex(poses).",
             )
         expected = certify.multipliers(p, x)
         problem, hint = _diagnose_multipliers(got, p.M, x, expected)
         if problem is not None:
-            where = "a stationary point" if k == 0 else "the odometry (not stationary)"
             return verdict(ex, f"on test {k + 1} of {len(cases)} ({where}): " + problem, hint=hint)
     return verdict(
         ex,
@@ -196,13 +195,14 @@ def check_multipliers(multipliers):
 
 
 # --------------------------------------------------------------------------- exercise 9.2
-@check("9.2")
+@check("9.2", certified_point=Choice(POINT_CHOICES), lower_bound_P=Real())
 def check_certificate_reading(certified_point, lower_bound_P, problem, P, Q):
     """Check exercise 9.2: read two certificates' numbers before certifying.
 
     Certifies ``P`` and ``Q`` (poses of ``problem``'s graph) with :func:`lagolib.certify.certify`
     and compares: ``certified_point`` (``"P"``, ``"Q"``, ``"both"`` or ``"neither"``) with the
-    certificates' verdicts, and ``lower_bound_P`` with ``P``'s lower bound
+    certificates' verdicts (certified: the gap ``f - lower bound`` is at most the tolerance
+    ``2 n eta0``), and ``lower_bound_P`` with ``P``'s lower bound
     ``sum(lambda) + n min(lambda_min, 0)`` to ``1e-4`` relative (numbers read off a print).
     Prints both certificates either way.
 
@@ -226,8 +226,11 @@ def check_certificate_reading(certified_point, lower_bound_P, problem, P, Q):
     )
 
     def said(name, c):
-        lm = "≥ −η" if c.lambda_min is None else f"{c.lambda_min:.6g}"
-        return f"{name}: certified {c.certified}, λ_min {lm}, lower bound {c.lower_bound:.6g}"
+        lm = "> −η (not computed)" if c.lambda_min is None else f"{c.lambda_min:.6g}"
+        return (
+            f"{name}: certified {c.certified}, λ_min {lm}, lower bound {c.lower_bound:.6g}, "
+            f"gap {c.gap:.3g} (tolerance {c.tolerance:.3g})"
+        )
 
     facts = f"{said('P', cP)}; {said('Q', cQ)}"
     wrong = compare_choice(certified_point, want, POINT_CHOICES, name="certified_point")
@@ -237,21 +240,19 @@ def check_certificate_reading(certified_point, lower_bound_P, problem, P, Q):
         return verdict(
             ex,
             f"you predicted {certified_point!r}, but {facts}.",
-            hint="a point is certified when the smallest eigenvalue of S~ is not below −η: zero "
-            "up to rounding is fine, −7 is not.",
+            hint="a point is certified when its gap — f minus its lower bound "
+            "Σλ + n·min(λ_min, 0) — is at most the tolerance 2nη₀, tiny next to f (section 4). "
+            "Work out each point's bound from the printed numbers and compare it with its f.",
         )
     n = problem.n
     lam_sum = float(cP.multipliers.sum())
     lam_min = cP.lambda_min if cP.lambda_min is not None else 0.0
     wrong = compare_number(lower_bound_P, cP.lower_bound, name="lower_bound_P", rtol=1e-4)
     if wrong is not None:
-        try:
-            got = float(lower_bound_P)
-        except (TypeError, ValueError):
-            got = None
+        got = lower_bound_P  # read by @check as one finite real number
 
         def near(a, b):
-            return got is not None and bool(np.isclose(a, b, rtol=1e-4))
+            return bool(np.isclose(a, b, rtol=1e-4))
 
         hint = "the bound is Σλ + n·min(λ_min, 0), with n the number of poses."
         if near(got, lam_sum) or near(got, cP.f):
@@ -298,9 +299,9 @@ def noise_sweep(sigmas=SWEEP_SIGMAS, seeds=SWEEP_SEEDS):
         ``"sigmas"``, ``"seeds"`` (tuples) and, each an ndarray of shape
         ``(len(sigmas), len(seeds))``: ``"certified"`` (bool), ``"not_tight"`` (bool: the
         rank-2 relaxation is certified but not rank one), ``"escapes"`` (int), ``"chi2"``,
-        ``"f"``, ``"relative_gap"`` (``SolveResult.gap / f``), ``"reason"`` (str) and
-        ``"stages"`` (object: each world's ``SolveResult.stages``), and ``"seconds"`` (float,
-        the whole sweep).
+        ``"f"``, ``"relative_gap"`` (``SolveResult.relative_gap``: the gap over ``f``),
+        ``"reason"`` (str) and ``"stages"`` (object: each world's ``SolveResult.stages``), and
+        ``"seconds"`` (float, the whole sweep).
     """
     import time
 
@@ -332,7 +333,7 @@ def noise_sweep(sigmas=SWEEP_SIGMAS, seeds=SWEEP_SEEDS):
                 out["escapes"][a, b] = r.escapes
                 out["chi2"][a, b] = r.chi2
                 out["f"][a, b] = r.f
-                out["relative_gap"][a, b] = r.gap / r.f
+                out["relative_gap"][a, b] = r.relative_gap
                 out["reason"][a, b] = r.reason
                 out["stages"][a, b] = r.stages
     out["seconds"] = time.perf_counter() - t0
@@ -341,7 +342,7 @@ def noise_sweep(sigmas=SWEEP_SIGMAS, seeds=SWEEP_SEEDS):
     return noise_sweep(sigmas, seeds)
 
 
-@check("9.3")
+@check("9.3", first_uncertified=Real(), not_tight=Int())
 def check_noise_sweep(first_uncertified, not_tight):
     """Check exercise 9.3: where the certificate first fails on the sweep, and how often the
     relaxation is not tight.
@@ -373,11 +374,8 @@ def check_noise_sweep(first_uncertified, not_tight):
     )
     wrong = compare_number(first_uncertified, want_sigma, name="first_uncertified", rtol=1e-9)
     if wrong is not None:
-        try:
-            got = float(first_uncertified)
-        except (TypeError, ValueError):
-            got = None
-        if got is not None and np.any(np.isclose(sigmas, got)):
+        got = first_uncertified  # read by @check as one finite real number
+        if np.any(np.isclose(sigmas, got)):
             wrong = (
                 f"first_uncertified is {got:g}; the certified fractions are {fractions}: the "
                 "first σθ below 1 is another one."
@@ -391,14 +389,11 @@ def check_noise_sweep(first_uncertified, not_tight):
     wrong = compare_int(not_tight, want_nt, name="not_tight")
     if wrong is not None:
         n_unc = int((~sw["certified"]).sum())
-        try:
-            got = int(not_tight)
-        except (TypeError, ValueError):
-            got = None
-        if got is not None and got == n_unc and n_unc != want_nt:
+        if not_tight == n_unc and n_unc != want_nt:  # an int: @check read it
             wrong += (
-                " You counted every world that is not certified; some of those ran out of "
-                "escapes instead."
+                " You counted every world that is not certified; some of those stopped for "
+                "another reason (a budget ran out, or the staircase could not go on: the printed "
+                "reason says which)."
             )
         return verdict(
             ex,
