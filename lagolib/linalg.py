@@ -71,11 +71,13 @@ BACKENDS = ("qdldl", "pardiso", "scipy")
 
 #: ``backend="auto"`` uses PARDISO (when installed) for systems of at least this many rows, qdldl
 #: below — rows of a pose graph's *2-core* when the caller knows it (``auto_rows``): the tree-like
-#: parts (an odometry chain) cost O(n) with no fill on qdldl, while PARDISO's supernodes gain
-#: nothing there.  Measured with every solve's check included (``benchmarks/BACKENDS.md``, one
-#: Gauss–Newton refactorization and checked solve, 2 cores): on Manhattan worlds qdldl / PARDISO
-#: is 0.85 at 3.0 x 10^4 rows, 1.13 at 5.1 x 10^4, 1.9 at 9 x 10^4 and 6.2 at 3 x 10^5; on
-#: odometry chains qdldl is 16-100x faster at every size (0.02-0.05 s against 0.4-5 s).
+#: parts (an odometry chain) cost O(n) with no fill on qdldl.  Measured with every solve's check
+#: included (``benchmarks/BACKENDS.md``: one Gauss–Newton refactorization and checked solve, 2
+#: cores).  Above 5 x 10^4 rows PARDISO won on an idle machine (qdldl / PARDISO 1.7 at 5.1 x 10^4
+#: rows, 2.5 at 9 x 10^4, 7.3 at 3 x 10^5) and on a busy one (1.13, 1.9, 6.2); below, it won idle
+#: (1.6-2.4) but lost busy (0.10-0.85: its threads wait for each other), and the book's graphs
+#: (at most 3 x 10^4 rows) stay on the readable, deterministic qdldl.  On chains qdldl was
+#: 3-4x faster at every size.
 PARDISO_MIN_SIZE = 50_000
 
 #: Every solve is checked by its componentwise (Oettli–Prager) backward error
