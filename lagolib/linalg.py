@@ -468,7 +468,7 @@ class SparseCholesky:
         self.last_check = None
         self._solver = None
         self._pattern = None
-        self._residual = None
+        self._residual = self._triangle = None
         self._failed = "it was never factored"
         self.refactor(H)
 
@@ -479,7 +479,7 @@ class SparseCholesky:
         :meth:`solve` raises until a later ``refactor`` succeeds.
         """
         self._failed = "its last factorization failed"  # until this one has succeeded
-        self._residual = None
+        self._residual = self._triangle = None
         _check_square(H, "SparseCholesky", check=self._check)
         if H.shape != self.shape:
             raise OptionError(f"SparseCholesky.refactor needs shape {self.shape}; got {H.shape}")
@@ -493,7 +493,13 @@ class SparseCholesky:
             self._factor_scipy(H)
         else:
             self._factor_triangle(H)
-        self._residual = _Upper(H)  # what was factored, for every solve's check
+        # what was factored, for every solve's check: the triangle the backend was given (no
+        # copy: a fresh gather per refactor), or H's upper triangle for SuperLU
+        self._residual = (
+            _Upper(H)
+            if self._triangle is None
+            else _Upper(U=self._triangle[0], d=self._triangle[1])
+        )
         self._failed = None
         return self
 
@@ -523,6 +529,7 @@ class SparseCholesky:
         _check_diagonal(d, self.backend)
         U = sp.csr_matrix if self.backend == "pardiso" else sp.csc_matrix
         U = U((data, indices, indptr), shape=self.shape)
+        self._triangle = (U, d)  # d: H's diagonal, the triangle's
         if self.backend == "qdldl":
             try:
                 self._factor_qdldl(U, same, d)
@@ -788,10 +795,12 @@ class _Upper:
     does to its own array afterwards, in half the memory of ``H``.
     """
 
-    def __init__(self, H):
-        U = sp.triu(H, format="csr")
-        U.sort_indices()
-        self.U, self.d = U, U.diagonal()
+    def __init__(self, H=None, *, U=None, d=None):
+        if U is None:  # from H (CSR): its upper triangle, copied
+            U = sp.triu(H, format="csr")
+            U.sort_indices()
+            d = U.diagonal()
+        self.U, self.d = U, d  # or the triangle a backend was given (CSR or CSC) and its diagonal
 
     def matvec(self, x):
         d = self.d if x.ndim == 1 else self.d[:, None]
@@ -799,8 +808,9 @@ class _Upper:
 
     def absvec(self, v):
         d = np.abs(self.d) if v.ndim == 1 else np.abs(self.d)[:, None]
+        csc = self.U.format == "csc"  # U^T is then CSR, and the other way round
         return (
-            _abs_dot(self.U, v) + _abs_dot(self.U.T.tocsc(copy=False), v, by_columns=True) - d * v
+            _abs_dot(self.U, v, by_columns=csc) + _abs_dot(self.U.T, v, by_columns=not csc) - d * v
         )
 
     def matrix(self):
