@@ -297,6 +297,12 @@ def test_33_raising_function_is_feedback(capsys):
 @pytest.fixture(scope="module")
 def gate_world():
     """The chapter's two-lap square and candidate loop closures (same seeds and construction)."""
+    return gate_world_data()
+
+
+def gate_world_data():
+    """``(graph, estimate, truth, candidates, information)`` of exercise 3.4 (also used by
+    tests/test_exercises_fuzz.py)."""
     sim2 = simulate.loop_world(laps=2, poses_per_lap=40, rng=np.random.default_rng(9))
     g = sim2.graph
     keep = g.odometric | (np.arange(g.m) % 2 == 0)

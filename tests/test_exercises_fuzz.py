@@ -28,6 +28,7 @@ import pytest
 import scipy.sparse as sp
 import sympy
 from scipy.sparse.linalg import spsolve
+from test_exercises_ch03 import gate_world_data
 
 import lagolib
 from lagolib import certify, se2, simulate, topology
@@ -237,27 +238,7 @@ def _loop_chain_and_closure():
 @functools.lru_cache(maxsize=None)
 def _gate_world():
     """Chapter 3's two-lap square and candidate loop closures (exercise 3.4)."""
-    sim = simulate.loop_world(laps=2, poses_per_lap=40, rng=np.random.default_rng(9))
-    g = sim.graph
-    keep = g.odometric | (np.arange(g.m) % 2 == 0)
-    g = lagolib.PoseGraph(g.poses, g.edges[keep], g.measurements[keep], g.information[keep])
-    est = lagolib.optimize(g).poses
-    info = np.diag([400.0, 400.0, 1e4])
-    rng = np.random.default_rng(10)
-    pairs = np.column_stack([np.arange(0, 40, 2), np.arange(40, 80, 2)])
-    k = len(pairs)
-    z_pair = se2.between(sim.truth[pairs[:, 0]], sim.truth[pairs[:, 1]])
-    noise = rng.multivariate_normal(np.zeros(3), np.linalg.inv(info), size=k)
-    angle, offset = rng.uniform(-np.pi, np.pi, k), rng.uniform(0.05, 0.60, k)
-    wrong = np.column_stack(
-        [offset * np.cos(angle), offset * np.sin(angle), rng.normal(0, 0.01, k)]
-    )
-    candidates = {
-        "pairs": np.vstack([pairs, pairs]),
-        "z": np.vstack([z_pair + noise, z_pair + wrong]),
-        "false": np.repeat([False, True], k),
-    }
-    return g, est, sim.truth, candidates, info
+    return gate_world_data()
 
 
 @functools.lru_cache(maxsize=None)
