@@ -729,22 +729,26 @@ class LinearSystem:
         return sp.csr_matrix((data, self._indices, self._indptr), shape=H.shape)
 
     def rounding_floor(self, poses):
-        """How far χ² at ``poses`` can move from floating-point rounding alone.
+        """How far the objective at ``poses`` can move from floating-point rounding alone.
 
-        Each error ``e_ij`` is computed from coordinates of size ``|t_i| + |t_j|``, so it carries
-        a rounding error of about ``4 eps (|t_i| + |t_j| + |z_ij| + pi)``; its term
-        ``e^T Omega e`` moves by up to ``2 sqrt(e^T Omega e) sqrt(tr Omega)`` times that.  Below
-        this sum no step can be told to decrease χ² (:func:`optimize` then stops as converged).
+        Each edge's residual ``e`` (this system's own: :meth:`_terms`, weighted by
+        :meth:`_edge_weights`) is computed from coordinates of size ``|t_i| + |t_j|``, so it
+        carries a rounding error of about ``4 eps (|t_i| + |t_j| + |z_ij| + pi)``; its term
+        ``e^T W e`` moves by up to ``2 sqrt(e^T W e) sqrt(tr W)`` times that.  Below this sum no
+        step can be told to decrease the objective (:func:`optimize` then stops as converged).
         """
         g = self.graph
         edges = g.edges
-        terms = _edge_chi2(g, poses[edges[:, 0]], poses[edges[:, 1]], self.error)
+        e = self._terms(poses)[0]
+        W = self._edge_weights()
+        with np.errstate(over="ignore", invalid="ignore"):
+            terms = np.einsum("ka,kab,kb->k", e, W, e)
         size = np.abs(poses[:, :2]).sum(axis=1)
         de = 4 * np.finfo(float).eps * (
             size[edges[:, 0]] + size[edges[:, 1]] + np.abs(g.measurements).sum(axis=1) + np.pi
         )
-        trace = np.einsum("kaa->k", g.information)
-        return float(np.sum(2 * np.sqrt(terms * trace) * de + trace * de**2))
+        trace = np.einsum("kaa->k", W)
+        return float(np.sum(2 * np.sqrt(np.abs(terms) * trace) * de + trace * de**2))
 
     def update(self, poses, dx):
         """``x <- x + dx`` on the free poses (lecture notes, "Algorithm" line 5), angles wrapped.

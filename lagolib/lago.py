@@ -325,7 +325,15 @@ def _free_rows(graph, root):
 
 
 def phase1_orientations(
-    graph, delta_bar, *, anchor=None, omega_delta=None, backend="auto", tree=None, ordering=None
+    graph,
+    delta_bar,
+    *,
+    anchor=None,
+    omega_delta=None,
+    backend="auto",
+    tree=None,
+    ordering=None,
+    core=None,
 ):
     """Phase 1: the BLUE of the orientations from ``A^T θ = δ̄`` (Carlone et al. 2011, eq. 8, 13).
 
@@ -347,6 +355,9 @@ def phase1_orientations(
         also when ``A P_δ^-1 A^T`` is ill-conditioned (:func:`lagolib.estimation.blue`).
     ordering : ndarray of int, shape (n,), or callable, optional
         Elimination order of the free poses (:func:`pose_ordering`), for the factorization.
+    core : int or callable, optional
+        Free poses in the pose graph's 2-core (:func:`lagolib.linalg.core_size`), which decide
+        ``backend="auto"``; computed from the graph when needed otherwise.
 
     Returns
     -------
@@ -367,15 +378,10 @@ def phase1_orientations(
         root = _anchor_row(graph, anchor)
         theta_tree = tree.potentials(delta_bar)
         start = (theta_tree - theta_tree[root])[_free_rows(graph, root)]
-    core_rows = lambda: core_size(_free_pattern(graph, anchor, "phase1_orientations")[0])  # noqa: E731
+    if core is None:
+        core = _FreePoses(graph, anchor, "phase1_orientations").core
     return blue(
-        A,
-        delta_bar,
-        omega_delta,
-        backend=backend,
-        start=start,
-        ordering=ordering,
-        auto_rows=core_rows,
+        A, delta_bar, omega_delta, backend=backend, start=start, ordering=ordering, auto_rows=core
     )
 
 
@@ -397,21 +403,47 @@ def pose_ordering(graph, anchor=None):
     ndarray of int, shape (graph.n - 1,)
         Positions in the free poses' order (graph rows without the anchor).
     """
-    pattern, near = _free_pattern(graph, anchor, "pose_ordering")
-    return elimination_ordering(pattern, near)
+    return _FreePoses(graph, anchor, "pose_ordering").ordering()
 
 
-def _free_pattern(graph, anchor, where):
-    """The pose graph of the free poses (n - 1, n - 1) and the anchor's neighbours in it."""
-    root = _anchor_row(graph, anchor, where)
-    red = np.full(graph.n, -1, dtype=np.int64)
-    red[_free_rows(graph, root)] = np.arange(graph.n - 1)
-    e = red[graph.edges]
-    inner = (e >= 0).all(axis=1)
-    k = graph.n - 1
-    pattern = sp.csr_matrix((np.ones(inner.sum()), (e[inner, 0], e[inner, 1])), shape=(k, k))
-    near = np.concatenate([e[e[:, 0] < 0, 1], e[e[:, 1] < 0, 0]])
-    return pattern, near[near >= 0]
+class _FreePoses:
+    """The pose graph of the free poses (every vertex but the anchor), computed once, and what
+    LAGO's two factorizations read from it: its 2-core's size and its elimination order."""
+
+    def __init__(self, graph, anchor, where):
+        root = _anchor_row(graph, anchor, where)
+        red = np.full(graph.n, -1, dtype=np.int64)
+        red[_free_rows(graph, root)] = np.arange(graph.n - 1)
+        self._e = red[graph.edges]
+        self._k = graph.n - 1
+        self._cached = {}
+
+    def _once(self, key, compute):
+        if key not in self._cached:
+            self._cached[key] = compute()
+        return self._cached[key]
+
+    def pattern(self):
+        """``(pattern, near)``: the (n-1, n-1) pose graph and the anchor's neighbours in it."""
+
+        def compute():
+            e, k = self._e, self._k
+            inner = (e >= 0).all(axis=1)
+            pattern = sp.csr_matrix(
+                (np.ones(inner.sum()), (e[inner, 0], e[inner, 1])), shape=(k, k)
+            )
+            near = np.concatenate([e[e[:, 0] < 0, 1], e[e[:, 1] < 0, 0]])
+            return pattern, near[near >= 0]
+
+        return self._once("pattern", compute)
+
+    def core(self):
+        """Free poses in the 2-core (:func:`lagolib.linalg.core_size`)."""
+        return self._once("core", lambda: core_size(self.pattern()[0]))
+
+    def ordering(self):
+        """:func:`lagolib.linalg.elimination_ordering` of the free poses."""
+        return self._once("ordering", lambda: elimination_ordering(*self.pattern()))
 
 
 def _position_blocks(graph, theta_full, Omega_Delta):
@@ -535,7 +567,9 @@ def phase2_relative_positions(graph, theta_hat, *, anchor=None, Omega_Delta=None
     return Phase2(z, info, Delta_g, J, W)
 
 
-def phase3_poses(graph, phase2, *, anchor=None, backend="auto", pose_ordering=None, tree=None):
+def phase3_poses(
+    graph, phase2, *, anchor=None, backend="auto", pose_ordering=None, tree=None, core=None
+):
     """Phase 3: the BLUE of ``p = [ρ; θ]`` from ``z = B^T p`` (Carlone et al. 2011, eq. 12, 15).
 
     ``p* = (B P_z^-1 B^T)^-1 B P_z^-1 z`` with ``B = [[A2, 0], [0, I_n]]``; ``I_p* = B P_z^-1 B^T``.
@@ -557,6 +591,9 @@ def phase3_poses(graph, phase2, *, anchor=None, backend="auto", pose_ordering=No
         where the direct solve is not — on a 4 x 10^4-pose chain ``B P_z^-1 B^T`` has a condition
         number of about 5e17 and the direct solve's poses were off by 1e-3 to 1e-1 relative,
         depending on the backend's rounding (:func:`lagolib.estimation.blue`).
+    core : int or callable, optional
+        Free poses in the pose graph's 2-core (three rows each decide ``backend="auto"``);
+        computed from the graph when needed otherwise.
 
     Returns
     -------
@@ -582,7 +619,9 @@ def phase3_poses(graph, phase2, *, anchor=None, backend="auto", pose_ordering=No
         free = _free_rows(graph, root)
         rho = np.column_stack([tree.potentials(phase2.Delta_g[:, k]) for k in (0, 1)])
         start = np.concatenate([(rho - rho[root])[free].ravel(), phase2.z[2 * graph.m :]])
-    core_rows = lambda: 3 * core_size(_free_pattern(graph, anchor, "phase3_poses")[0])  # noqa: E731
+    if core is None:
+        core = _FreePoses(graph, anchor, "phase3_poses").core
+    core_rows = lambda: 3 * (core() if callable(core) else core)  # noqa: E731
     return blue(  # eq. (15)
         B,
         phase2.z,
@@ -735,13 +774,7 @@ def lago(graph, tree="min_uncertainty", anchor=None, *, margin_warning=0.1, back
     reg = regularize(graph, tree, anchor_id, margin_warning=0.0)
     _warn_margins(graph, reg, margin_warning, stacklevel=2)
     t1 = time.perf_counter()
-    cache = []
-
-    def order():  # the free poses' elimination order, computed once if a factorization needs it
-        if not cache:
-            cache.append(pose_ordering(graph, anchor_id))
-        return cache[0]
-
+    free_poses = _FreePoses(graph, anchor_id, "lago")  # computed once, if a factorization asks
     p1 = phase1_orientations(  # solved as a correction to the tree's orientations
         graph,
         reg.delta_bar,
@@ -749,13 +782,20 @@ def lago(graph, tree="min_uncertainty", anchor=None, *, margin_warning=0.1, back
         omega_delta=omega_delta,
         backend=backend,
         tree=reg.tree,
-        ordering=order,
+        ordering=free_poses.ordering,
+        core=free_poses.core,
     )
     t2 = time.perf_counter()
     p2 = phase2_relative_positions(graph, p1, anchor=anchor_id, Omega_Delta=Omega_Delta)
     t3 = time.perf_counter()
-    p3 = phase3_poses(  # phase 1's order serves phase 3 too
-        graph, p2, anchor=anchor_id, backend=backend, pose_ordering=order, tree=reg.tree
+    p3 = phase3_poses(  # phase 1's order and core serve phase 3 too
+        graph,
+        p2,
+        anchor=anchor_id,
+        backend=backend,
+        pose_ordering=free_poses.ordering,
+        tree=reg.tree,
+        core=free_poses.core,
     )
     t4 = time.perf_counter()
     free = _free_rows(graph, root)

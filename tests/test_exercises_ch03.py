@@ -124,6 +124,11 @@ def test_31_raising_function_is_feedback(capsys):
 @pytest.fixture(scope="module")
 def loop():
     """The chapter's one-lap square, odometry only and with the closure 0-39 (same seeds)."""
+    return loop_data()
+
+
+def loop_data():
+    """``(chain, closed)`` of exercise 3.2 (also used by tests/test_exercises_fuzz.py)."""
     sim = simulate.loop_world(laps=1, poses_per_lap=40, rng=np.random.default_rng(7))
     full = sim.graph
     odo = full.odometric

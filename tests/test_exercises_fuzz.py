@@ -28,10 +28,10 @@ import pytest
 import scipy.sparse as sp
 import sympy
 from scipy.sparse.linalg import spsolve
-from test_exercises_ch03 import gate_world_data
+from test_exercises_ch03 import gate_world_data, loop_data
 
 import lagolib
-from lagolib import certify, se2, simulate, topology
+from lagolib import certify, se2, topology
 from lagolib.exercises import CHAPTERS, ch03, ch07, ch08, ch09
 from lagolib.exercises._coerce import (
     Bool,
@@ -218,21 +218,7 @@ def _multipliers(M, x):
 @functools.lru_cache(maxsize=None)
 def _loop_chain_and_closure():
     """Chapter 3's one-lap square: the odometry chain, and the chain with the closure 0-39."""
-    sim = simulate.loop_world(laps=1, poses_per_lap=40, rng=np.random.default_rng(7))
-    full = sim.graph
-    odo = full.odometric
-    chain = lagolib.PoseGraph(
-        full.poses, full.edges[odo], full.measurements[odo], full.information[odo]
-    )
-    noise = np.random.default_rng(8).normal(size=3) * [0.05, 0.05, 0.01]
-    z = se2.between(sim.truth[0], sim.truth[39]) + noise
-    closed = lagolib.PoseGraph(
-        chain.poses,
-        np.vstack([chain.edges, [[0, 39]]]),
-        np.vstack([chain.measurements, z]),
-        np.concatenate([chain.information, chain.information[:1]]),
-    )
-    return chain, closed
+    return loop_data()
 
 
 @functools.lru_cache(maxsize=None)

@@ -19,6 +19,8 @@ import warnings
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from test_backends import rotated_information
+from test_trust_backends import _corrupt
 
 import lagolib
 from lagolib import linalg, se2
@@ -59,18 +61,6 @@ def _spd(n=30, seed=0):
     return H
 
 
-def _rotated(m, rng):
-    """Anisotropic information rotated in x-y and sheared into theta, (m, 3, 3)."""
-    a = rng.uniform(0, np.pi, m)
-    c, s = np.cos(a), np.sin(a)
-    R = np.zeros((m, 3, 3))
-    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
-    R[:, 2, 0] = 0.3
-    D = np.zeros((m, 3, 3))
-    D[:, [0, 1, 2], [0, 1, 2]] = rng.uniform([50, 400, 900], [100, 2000, 4000], (m, 3))
-    return np.swapaxes(R, 1, 2) @ D @ R
-
-
 def _walk(n, seed):
     """A smooth random trajectory starting at the origin, shape (n, 3)."""
     rng = np.random.default_rng(seed)
@@ -87,7 +77,7 @@ def _graph(truth, edges, seed=0, noise=0.0):
     meas = se2.between(truth[edges[:, 0]], truth[edges[:, 1]])
     if noise:
         meas = meas + noise * rng.normal(size=meas.shape) * [1.0, 1.0, 0.1]
-    return lagolib.PoseGraph(truth, edges, meas, _rotated(len(edges), rng))
+    return lagolib.PoseGraph(truth, edges, meas, rotated_information(len(edges), rng))
 
 
 def _path(a, b):
@@ -249,15 +239,6 @@ def test_a_solve_whose_fallback_fails_leaves_a_consistent_factor(monkeypatch):
 
 
 # ------------------------------------------------------------------ the check at the float64 limits
-def _corrupt(monkeypatch, scale):
-    """Make the backend's raw substitutions wrong by a relative ``scale`` (deterministic)."""
-    original = linalg.SparseCholesky._solve_once
-
-    def wrong(self, b):
-        x = original(self, b)
-        return x * (1 + scale * np.cos(np.arange(x.size).reshape(x.shape)))
-
-    monkeypatch.setattr(linalg.SparseCholesky, "_solve_once", wrong)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -570,7 +551,7 @@ def test_marginal_covariances_of_a_long_chain_are_right_or_flagged():
     n = 20_000
     sim = lagolib.simulate.loop_world(laps=1, poses_per_lap=n, rng=0).graph
     g = lagolib.PoseGraph(
-        sim.poses, sim.edges, sim.measurements, _rotated(sim.m, np.random.default_rng(1))
+        sim.poses, sim.edges, sim.measurements, rotated_information(sim.m, np.random.default_rng(1))
     )
     idx = [1, n // 2, n - 1]
     exact = _compounded_covariances(g, set(idx))

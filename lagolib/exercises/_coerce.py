@@ -254,21 +254,18 @@ class Kind:
 
     def coerce(self, value, name: str = "your answer"):
         """``value`` read as this kind; raises :class:`WrongKind` naming the kind otherwise."""
-        try:
-            return self.parse(value)
-        except _Bad as bad:
-            raise WrongKind(
-                f"{name} should be {self.what}, got {bad.got}.", bad.hint or self.hint
-            ) from None
+        return self._read(value, f"{name} should be {self.what}, got {{}}.")
 
     def returned(self, value, name: str = "your function"):
         """Like :meth:`coerce` for the result of the student's function ``name``."""
+        return self._read(value, f"{name} should return {self.what}; it returned {{}}.")
+
+    def _read(self, value, message):
+        """``parse(value)``, or WrongKind with ``message`` filled with what was got."""
         try:
             return self.parse(value)
         except _Bad as bad:
-            raise WrongKind(
-                f"{name} should return {self.what}; it returned {bad.got}.", bad.hint or self.hint
-            ) from None
+            raise WrongKind(message.format(bad.got), bad.hint or self.hint) from None
 
     def prepare(self, value, name: str):
         """What :func:`lagolib.exercises.check` hands the check's body (here: the read value)."""
