@@ -2,9 +2,10 @@
 
 Layers (each imports only from the ones before it)::
 
-    errors -> files (atomic writes) -> se2 -> checks -> graph -> io, simulate, metrics
-    -> datasets -> topology -> linalg -> estimation -> gauss_newton, lago, sgd -> closed_form
-    -> certify -> plotting -> uncertainty -> book -> cli;   symbolic (sympy only)
+    errors -> files (atomic writes) -> se2 -> checks -> graph
+    -> io, simulate, metrics, occupancy, scans, scan_matching -> laser_world -> datasets
+    -> topology -> linalg -> estimation -> gauss_newton, lago, sgd -> closed_form -> certify
+    -> plotting -> uncertainty -> frontend -> book -> cli;   symbolic (sympy only)
 
 Public API
 ----------
@@ -47,6 +48,20 @@ metrics
 sgd
     A TORO-style baseline: stochastic gradient descent on a tree parameterization
     (``lagolib.sgd.sgd``).
+scans
+    Laser logs: the Carmen reader (``read_carmen``), ``LaserLog`` (ranges, beam angles, the
+    log's reference poses and raw odometry increments), scans as points.
+scan_matching
+    Point-to-line ICP with an odometry prior and a calibrated information matrix, its
+    degeneracy measure, and correlative search (``match``, ``ScanModel``,
+    ``correlative_search``).
+laser_world
+    A simulated office ray-cast by lagolib: the offline laser log of chapter 10.
+frontend
+    From a laser log to a pose graph: keyframes, sequential matches, loop closures gated by
+    the relative covariance and verified by scan matching (``build_graph``).
+occupancy
+    Log-odds occupancy grids (Thrun et al. 2005, ch. 9) and their map quality.
 cli
     The ``lagolib`` command: ``info``, ``solve``, ``plot``, ``datasets``, ``book``.
 uncertainty
@@ -64,11 +79,16 @@ from . import (
     closed_form,
     datasets,
     estimation,
+    frontend,
     gauss_newton,
     lago,
+    laser_world,
     linalg,
     metrics,
+    occupancy,
     plotting,
+    scan_matching,
+    scans,
     se2,
     sgd,
     simulate,
@@ -100,6 +120,7 @@ from .lago import lago as lago_solve
 from .plotting import (
     plot_covariance_ellipses,
     plot_graph,
+    plot_occupancy,
     plot_poses,
     plot_spanning_tree,
     plot_trajectories,
@@ -137,6 +158,12 @@ __all__ = [
     "closed_form",
     "uncertainty",
     "symbolic",
+    "scans",
+    "scan_matching",
+    "laser_world",
+    "frontend",
+    "occupancy",
+    "plot_occupancy",
     "PoseGraph",
     "residuals",
     "chi2",

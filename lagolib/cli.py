@@ -1,4 +1,5 @@
-"""The ``lagolib`` command: inspect, solve and plot planar pose-graph files from the shell.
+"""The ``lagolib`` command: inspect, solve and plot planar pose-graph files from the shell, and
+build them from laser logs.
 
 ::
 
@@ -11,11 +12,23 @@
                                        polish -> certificate (-> escape), :func:`lagolib.certify.solve`
     lagolib plot FILE [--poses P.txt] [--ellipses] -o OUT.png
                                        odometric edges solid, loop closures dotted (Carlone Fig. 1)
+    lagolib frontend LOG -o OUT.g2o [--progress] [--simulated-odometry FRACTION DEG]
+                                       a pose graph from a laser log (:mod:`lagolib.frontend`):
+                                       keyframes, ICP, gated and verified loop closures; on the
+                                       log's REAL odometry increments by default
+    lagolib map LOG|GRAPH [--log LOG] [--poses reference|odometry|FILE] -o OUT.png
+                                       the occupancy grid map (:mod:`lagolib.occupancy`); a LOG
+                                       alone: front end, certify.solve and map in one call
     lagolib datasets                   the registered benchmarks and where each one is
     lagolib book student-copies OUTDIR the book's tools (:mod:`lagolib.book`)
 
 ``FILE`` is a g2o or TORO file, or the name of a registered benchmark (``lagolib datasets``) or of
-a shipped example (``square_loop``, ``manhattan200``, ``grid100``).
+a shipped example (``square_loop``, ``manhattan200``, ``grid100``).  ``LOG`` is a Carmen laser
+log (plain or gzip), the name of a registered laser log (``intel_laser``, ``fr079_laser``,
+``csail_laser``, ``aces_laser``), or ``simulated`` (:func:`lagolib.laser_world.simulate_log`'s
+office, offline).  The graphs of ``frontend`` have the scans' indices in the log as vertex ids
+(0-based, in ``FLASER`` order): ``map`` reads them so, and anyone can compare a result with the
+log's reference poses (GMapping's corrected poses for a real log: an estimate, not ground truth).
 
 Errors print one line, ``lagolib: error: ...``, on stderr: the exit status is 2 for a usage error
 (an unknown option, method or value) and 1 for anything else (a missing file, a parse error — the
@@ -35,6 +48,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import functools
 import inspect
 import io
@@ -49,7 +63,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import book, certify, datasets, se2, topology
+from . import book, certify, datasets, frontend, metrics, se2, topology
 from .errors import (
     DatasetError,
     GraphError,
@@ -63,7 +77,10 @@ from .gauss_newton import optimize
 from .graph import ERRORS, chi2, vertex_rows
 from .io import detect_format, read, read_poses, write
 from .lago import lago, regularize
+from .laser_world import simulate_log
 from .linalg import BACKENDS
+from .occupancy import map_quality, occupancy_grid
+from .scans import read_carmen
 from .sgd import sgd
 
 __all__ = ["main", "COMMANDS", "METHODS", "INITIALS", "NOT_CERTIFIED"]
@@ -177,6 +194,11 @@ def _resolve(name):
         return p
     if name in datasets.names():
         d = datasets.info(name)
+        if d.kind == "laser":
+            raise LagolibError(
+                f"dataset {name!r} is a laser log (Carmen), not a pose graph; build a graph "
+                f"from its scans first: 'lagolib frontend {name} -o graph.g2o'"
+            )
         if d.kind != "graph":
             raise LagolibError(
                 f"dataset {name!r} holds ground-truth poses, not a graph; give it to "
@@ -867,15 +889,486 @@ def _cmd_plot(args):
     return 0
 
 
+# ----------------------------------------------------------------------------- laser logs
+#: ``LOG`` that names the simulated office of :mod:`lagolib.laser_world` (offline; its reference
+#: poses are the ground truth): :func:`lagolib.laser_world.simulate_log`'s default log, the one
+#: :func:`lagolib.datasets.load_laser_or_simulated` falls back to.
+SIMULATED = "simulated"
+#: The front end's defaults (:func:`lagolib.frontend.build_graph`), for the help and the summary.
+_FE = {
+    name: p.default
+    for name, p in inspect.signature(frontend.build_graph).parameters.items()
+    if p.default is not inspect.Parameter.empty
+}
+#: ``--simulated-odometry`` of the issue's simulated experiment: ``simulate_log``'s default
+#: ``(fraction of the translation, radians per step)``.
+_SIM_SIGMA = inspect.signature(simulate_log).parameters["odometry_sigma"].default
+#: Why a matched loop-closure candidate was rejected (:func:`lagolib.frontend.verify_closure`),
+#: in the order its rules are tested.
+_REJECTIONS = ("not converged", "inliers", "residual", "degenerate", "ambiguous", "inconsistent")
+#: ``(option, dest)`` of the options that set the front end (``map`` checks they apply).
+_FRONTEND_OPTIONS = (
+    ("--min-translation", "min_translation"),
+    ("--min-rotation", "min_rotation"),
+    ("--translation-sigma", "translation_sigma"),
+    ("--rotation-sigma", "rotation_sigma"),
+    ("--match-range", "match_range"),
+    ("--batch", "batch"),
+)
+_FLASER_LINE = re.compile(rb"(?m)^[ \t]*FLASER[ \t]")
+_GRAPH_LINE = re.compile(rb"(?m)^[ \t]*(?:VERTEX_SE2|VERTEX2|EDGE_SE2|EDGE2)[ \t]")
+
+
+def _laser_names():
+    return [n for n in datasets.names() if datasets.info(n).kind == "laser"]
+
+
+def _log_names():
+    """The names a ``LOG`` may be, for messages."""
+    return f"{', '.join(_laser_names())}, or '{SIMULATED}' (the simulated office, offline)"
+
+
+def _input_kind(name):
+    """``"log"`` or ``"graph"``: what ``name`` (a file, a dataset or example name) holds.
+
+    A file by its extension (``.g2o``, ``.graph``: a graph), else by its first 64 kB: gzip or a
+    ``FLASER`` line is a log, vertex or edge lines without one a graph; anything else is given
+    to the log reader, whose error names the file.  A name that is nothing: "log" (its reader
+    says there is no such file).
+    """
+    p = Path(name)
+    if p.is_file():
+        if p.suffix.lower() in _GRAPH_SUFFIXES:
+            return "graph"
+        with open(p, "rb") as f:
+            head = f.read(1 << 16)
+        if head[:2] == b"\x1f\x8b" or _FLASER_LINE.search(head):
+            return "log"
+        return "graph" if _GRAPH_LINE.search(head) else "log"
+    if p.exists() or name == SIMULATED:
+        return "log"
+    if name in datasets.names():
+        return "log" if datasets.info(name).kind == "laser" else "graph"
+    return "graph" if name in datasets.examples() else "log"
+
+
+def _read_log(name, flag=""):
+    """``(label, LaserLog)`` of ``LOG``: a Carmen log (plain or gzip), a laser log's name, or
+    ``simulated``.  ``flag``: the option that gave it (``"--log"``), for the messages."""
+    what = f"{flag} {name}" if flag else name
+    p = Path(name)
+    if p.exists():
+        if p.is_dir():
+            raise LagolibError(f"{what}: is a folder, not a Carmen laser log")
+        if _input_kind(name) == "graph":
+            raise LagolibError(
+                f"{what}: is a pose-graph file, not a Carmen laser log (FLASER lines): give a "
+                f"log file or one of {_log_names()}"
+            )
+        return str(p), read_carmen(p)
+    if name == SIMULATED:
+        return f"{SIMULATED} (the office of lagolib.laser_world.simulate_log)", simulate_log()
+    if name in datasets.names():
+        d = datasets.info(name)
+        if d.kind != "laser":
+            held = "a pose graph" if d.kind == "graph" else "ground-truth poses"
+            raise LagolibError(
+                f"{what}: dataset {name!r} is {held}, not a laser log; the laser logs: "
+                f"{_log_names()}"
+            )
+        try:
+            path = datasets.path(name)
+        except DatasetError as exc:
+            reason = getattr(exc, "reason", None)
+            if reason is None:  # a mirror without the file, a corrupt mirror: its own message
+                raise
+            raise LagolibError(
+                f"cannot get the laser log {name!r}: {reason}; work offline with the simulated "
+                f"office ('lagolib frontend {SIMULATED} -o graph.g2o'), or set LAGOLIB_DATA to a "
+                "folder that mirrors the laser logs"
+            ) from exc
+        return f"{name} ({path})", read_carmen(path, name=name)
+    if name in datasets.examples():
+        raise LagolibError(
+            f"{what}: {name!r} is a shipped pose-graph example, not a laser log; the laser logs: "
+            f"{_log_names()}"
+        )
+    raise LagolibError(f"{what}: no such file, nor the name of a laser log: {_log_names()}")
+
+
+def _simulated_odometry(log, fraction, degrees, seed):
+    """``log`` with its odometry replaced by its reference increments plus Gaussian noise.
+
+    As :func:`lagolib.laser_world.simulate_log` draws it (with the same generator calls, so the
+    simulated office's reference and seed give that log's own odometry):
+    ``u_k = (x_k ⊖ x_{k-1}) + ε_k`` in the frame of scan ``k - 1``, ``ε_k = (N(0, σ_xy²),
+    N(0, σ_xy²), N(0, σ_θ²))``, ``σ_xy = fraction · |t_k|``, ``σ_θ = degrees`` per step.
+    """
+    x = log.reference
+    u = np.zeros_like(x)
+    u[1:] = se2.between(x[:-1], x[1:])  # the reference increments, frame of scan k - 1
+    dist = np.hypot(u[1:, 0], u[1:, 1])  # |t_k|
+    z = np.random.default_rng(seed).standard_normal((len(x) - 1, 3))
+    u[1:, :2] += z[:, :2] * (fraction * dist)[:, None]  # σ_xy = fraction of the translation
+    u[1:, 2] += np.radians(degrees) * z[:, 2]  # σ_θ per step
+    u[:, 2] = se2.wrap_angle(u[:, 2])
+    return dataclasses.replace(log, odometry=u)
+
+
+def _odometry_text(args, log):
+    """Which odometry the front end (or ``--poses odometry``) uses."""
+    if args.simulated_odometry is not None:
+        fraction, degrees = args.simulated_odometry
+        return (
+            f"SIMULATED, not the log's: its reference increments + Gaussian noise, "
+            f"{fraction * 100:g} % of the translation and {degrees:g} deg per step (seed "
+            f"{args.seed or 0})"
+        )
+    if log.reference_kind == "truth":
+        return "the log's increments (simulated with the log)"
+    return "the log's REAL increments (raw odometry between scans)"
+
+
+def _load_laser(name, args, flag=""):
+    """``(label, LaserLog)`` of ``name`` with ``--simulated-odometry`` applied."""
+    label, log = _read_log(name, flag)
+    if args.simulated_odometry is not None:
+        fraction, degrees = args.simulated_odometry
+        log = _simulated_odometry(log, fraction, degrees, args.seed or 0)
+    return label, log
+
+
+def _frontend_kwargs(args):
+    """:func:`lagolib.frontend.build_graph`'s options from the command line (degrees to radians)."""
+
+    def given(dest, default):
+        value = getattr(args, dest)
+        return default if value is None else value
+
+    return dict(
+        min_translation=given("min_translation", _FE["min_translation"]),
+        min_rotation=np.radians(given("min_rotation", np.degrees(_FE["min_rotation"]))),
+        translation_sigma=given("translation_sigma", _FE["translation_sigma"]),
+        rotation_sigma=np.radians(given("rotation_sigma", np.degrees(_FE["rotation_sigma"]))),
+        max_range=given("match_range", _FE["max_range"]),
+        incremental=not args.batch,
+    )
+
+
+def _frontend_progress(stamped):
+    """The ``progress(stage, done, total)`` of :func:`~lagolib.frontend.build_graph`: a line at
+    every tenth of each stage (and the keyframes' count when the first stage starts)."""
+
+    def progress(stage, done, total):
+        if stage == "sequential" and done == 1:
+            stamped.write(f"keyframes: {total + 1}\n")
+        step = max(1, -(-total // 10))
+        if done % step == 0 or done == total:
+            what = "keyframe pairs matched" if stage == "sequential" else "keyframes searched"
+            stamped.write(f"{stage}: {done} of {total} {what}\n")
+
+    return progress
+
+
+def _run_frontend(args, log, label, sink, t0):
+    stamped = _Stamped(sink, "[frontend] ", t0) if sink is not None else None
+    progress = _frontend_progress(stamped) if stamped is not None else None
+    try:
+        fe = frontend.build_graph(log, **_frontend_kwargs(args), progress=progress)
+    except (OptionError, OptionTypeError) as exc:  # the options were checked: it is the log's
+        raise LagolibError(f"{label}: {_one_line(exc)}") from exc
+    if stamped is not None:
+        stamped.write(f"done: {fe.n_accepted} loop closures accepted\n")
+    return fe
+
+
+def _against(log):
+    """What a log's reference poses are, for the lines that compare with them."""
+    if log.reference_kind == "truth":
+        return "the ground truth"
+    return "GMapping's corrected poses (the log's estimate, not ground truth)"
+
+
+def _ate_text(poses, reference):
+    ate = metrics.absolute_trajectory_error(poses, reference)
+    return (
+        f"{ate.translation_rmse:.3f} m RMSE (max {ate.translation_max:.3f} m), rotation "
+        f"{np.degrees(ate.rotation_rmse):.2f} deg RMSE"
+    )
+
+
+def _log_lines(label, log):
+    k, n = log.ranges.shape
+    return [
+        f"log               {label}: {k} scans of {n} beams, max range {log.max_range:g} m",
+        f"reference poses   {_against(log)}",
+    ]
+
+
+def _frontend_lines(fe, log, args):
+    """The summary of a front-end run (``frontend``, and ``map`` of a log)."""
+    kw = _frontend_kwargs(args)
+    g = fe.graph
+    accepted, matched = fe.n_accepted, len(fe.candidates)
+    reasons = {}
+    for c in fe.candidates:
+        reasons[c.reason] = reasons.get(c.reason, 0) + 1
+    order = [*_REJECTIONS, *sorted(set(reasons) - set(_REJECTIONS) - {"accepted"})]
+    rejected = ", ".join(f"{reasons.get(r, 0)} {r}" for r in order)
+    wrong = frontend.wrong_closures(fe)
+    pairs = [(c.i, c.j) for c, w in zip(fe.closures, wrong) if w]
+    wrong_text = f"{int(wrong.sum())} of {accepted}" + (f": {_show_pairs(pairs)}" if pairs else "")
+    reference = (
+        "the ground truth" if log.reference_kind == "truth" else "GMapping's corrected poses"
+    )
+    rules = fe.settings.get("rules") or frontend.ClosureRules()
+    if kw["incremental"]:
+        mode, estimate = "incremental", "optimized after every accepted closure"
+    else:
+        mode, estimate = "batch", "the chain of sequential matches (batch)"
+    return [
+        f"odometry          {_odometry_text(args, log)}",
+        f"keyframes         {len(fe.keyframes)} of {len(log)} scans (every "
+        f"{kw['min_translation']:g} m or {np.degrees(kw['min_rotation']):g} deg of odometry); "
+        "vertex ids: scan indices",
+        f"sequential edges  {g.m - accepted}: ICP between consecutive keyframes, odometry prior "
+        f"{kw['translation_sigma'] * 100:g} % of the distance and "
+        f"{np.degrees(kw['rotation_sigma']):g} deg",
+        f"loop closures     {mode}: {fe.gated} gated (relative uncertainty), {matched} matched, "
+        f"{accepted} accepted",
+        f"  rejected        {matched - accepted}: {rejected}",
+        f"  not matched     {fe.gated - matched} gated (at most {rules.max_candidates} matched per "
+        "keyframe, the most plausible first)",
+        f"wrong closures    {wrong_text} (off by > 0.5 m or 5 deg against {reference})",
+        f"front-end poses   {estimate}: ATE {_ate_text(g.poses, fe.reference)}",
+        f"graph             {g.n} poses, {g.m} edges",
+    ]
+
+
+def _stage_times(fe):
+    t = fe.timings
+    return ", ".join(
+        f"{stage} {t[stage]:.3f} s"
+        for stage in ("keyframes", "sequential", "closures", "optimization")
+        if stage in t
+    )
+
+
+def _check_seed(args, command, applies):
+    if args.seed is not None and args.simulated_odometry is None:
+        raise _UsageError(f"{command}: --seed draws the noise of --simulated-odometry; give both")
+    if args.simulated_odometry is not None and not applies:
+        raise _UsageError(
+            f"{command}: --simulated-odometry replaces the odometry the front end (or --poses "
+            "odometry) uses; it does not apply here"
+        )
+
+
+def _cmd_frontend(args):
+    output = _output_path(args.output, _GRAPH_SUFFIXES, "-o", "frontend")
+    _check_seed(args, "frontend", True)
+    sink = sys.stderr if args.progress else None
+    t0 = time.perf_counter()
+    label, log = _load_laser(args.log, args)
+    t_read = time.perf_counter() - t0
+    if sink is not None:
+        k, n = log.ranges.shape
+        sink.write(f"[frontend] read {label}: {k} scans of {n} beams  t {t_read:.3f} s\n")
+        sink.flush()
+    fe = _run_frontend(args, log, label, sink, t0)
+    t = time.perf_counter()
+    write(fe.graph, output)
+    t_write = time.perf_counter() - t
+    lines = [*_log_lines(label, log), *_frontend_lines(fe, log, args)]
+    lines += [
+        f"time              read {t_read:.3f} s, {_stage_times(fe)}, write {t_write:.3f} s; "
+        f"total {time.perf_counter() - t0:.3f} s",
+        f"wrote             {output}",
+    ]
+    print("\n".join(lines))
+    return 0
+
+
+def _scan_ids(ids, log, label, what):
+    """``ids`` checked as scan indices of ``log``: ``(order, sorted ids)``."""
+    ids = np.asarray(ids, dtype=np.int64)
+    bad = ids[(ids < 0) | (ids >= len(log))]
+    if bad.size:
+        raise LagolibError(
+            f"{what}: vertex id {int(bad[0])} is not a scan of {label} ({len(log)} scans: ids 0.."
+            f"{len(log) - 1}); the vertex ids of a graph for 'lagolib map' are the scans' indices "
+            "in the log, as 'lagolib frontend' writes them"
+        )
+    order = np.argsort(ids, kind="stable")
+    return order, ids[order]
+
+
+def _poses_file(name, ignore_unknown):
+    """``(ids, poses)`` of ``--poses FILE``: a g2o/TORO file or an ``id x y theta`` list."""
+    p = Path(name)
+    if p.is_dir():
+        raise LagolibError(f"--poses {name}: is a folder, not a poses file")
+    if not p.is_file():
+        raise LagolibError(
+            f"--poses {name}: no such file (nor 'reference' or 'odometry', the log's own poses)"
+        )
+    if p.suffix.lower() in _GRAPH_SUFFIXES:
+        g = read(p, ignore_unknown=ignore_unknown)
+        return g.ids, g.poses
+    return read_poses(p)
+
+
+def _map_checks(args, kind):
+    """The usage errors of ``map``: which options apply to which INPUT."""
+    runs_frontend = kind == "log" and args.poses is None
+    if kind == "graph":
+        if args.log is None:
+            raise _UsageError(
+                f"map: INPUT {args.input} is a pose graph: give the laser log whose scans its "
+                "vertex ids index with --log LOG (a Carmen log file, or a laser log's name)"
+            )
+        if args.poses not in (None, "reference", "odometry"):
+            raise _UsageError(
+                "map: --poses FILE with a GRAPH input: give FILE as INPUT instead (its vertex ids "
+                "are the scans drawn), with --log LOG"
+            )
+    elif args.log is not None:
+        raise _UsageError(
+            f"map: --log gives the scans of a GRAPH input; INPUT {args.input} is a laser log "
+            "already"
+        )
+    given = [flag for flag, dest in _FRONTEND_OPTIONS if getattr(args, dest) not in (None, False)]
+    if given and not runs_frontend:
+        raise _UsageError(
+            f"map: {', '.join(given)} set(s) the front end, which map runs only for a LOG "
+            "without --poses"
+        )
+    _check_seed(args, "map", runs_frontend or args.poses == "odometry")
+    return runs_frontend
+
+
+def _cmd_map(args):
+    output = _output_path(args.output, _image_kinds(), "-o", "map")
+    kind = _input_kind(args.input)
+    runs_frontend = _map_checks(args, kind)
+    sink = sys.stderr if args.progress else None
+    t0 = time.perf_counter()
+    graph = path = None
+    if kind == "graph":
+        path = _resolve(args.input)
+        graph = read(path, ignore_unknown=args.ignore_unknown)
+        label, log = _load_laser(args.log, args, "--log")
+    else:
+        label, log = _load_laser(args.input, args)
+    times = [f"read {time.perf_counter() - t0:.3f} s"]
+    if sink is not None:
+        k, n = log.ranges.shape
+        sink.write(
+            f"[map] read {label}: {k} scans of {n} beams  t {time.perf_counter() - t0:.3f} s\n"
+        )
+        sink.flush()
+    lines, estimated = _log_lines(label, log), True
+    if args.poses == "odometry":
+        lines.append(f"odometry          {_odometry_text(args, log)}")
+    if graph is not None:
+        order, ids = _scan_ids(graph.ids, log, label, str(path))
+        if args.poses == "reference":
+            poses, what, estimated = log.reference[ids], "the log's reference poses", False
+        elif args.poses == "odometry":
+            poses, what = log.odometry_poses()[ids], "the chained odometry"
+        else:
+            poses, what = graph.poses[order], f"the poses of {path}"
+        what += f" of the graph's {ids.size} scans"
+    elif runs_frontend:
+        fe = _run_frontend(args, log, label, sink, t0)
+        lines += _frontend_lines(fe, log, args)
+        times.append(_stage_times(fe))
+        stamped = _Stamped(sink, "[certify] ", t0) if sink is not None else None
+        with (
+            contextlib.redirect_stdout(stamped) if stamped else contextlib.nullcontext(),
+            _internal("map"),
+        ):
+            res = certify.solve(fe.graph, verbose=sink is not None)
+        if not res.certified:
+            warnings.warn(
+                f"the optimized poses are not certified globally optimal ({res.reason}); the map "
+                "is drawn at them",
+                LagolibWarning,
+                stacklevel=1,
+            )
+        lines.append(
+            f"optimization      certify.solve (LAGO -> Gauss-Newton -> certificate): chi2 "
+            f"{res.chi2:.10g}, certified globally optimal: {_value(res.certified)}"
+        )
+        times.append(f"certify.solve {res.timings['total']:.3f} s")
+        order, ids = _scan_ids(fe.graph.ids, log, label, label)
+        # in the front end's frame (the first keyframe at its reference pose), not LAGO's
+        anchor = se2.compose(fe.graph.poses[0], se2.between(res.poses[0], np.zeros(3)))  # g0 r0^-1
+        poses = se2.compose(anchor, res.poses)[order]
+        what = f"the optimized poses of the {ids.size} keyframes"
+    elif args.poses == "reference":
+        ids, poses, estimated = np.arange(len(log)), log.reference, False
+        what = f"the log's reference poses of all {len(log)} scans"
+    elif args.poses == "odometry":
+        ids, poses = np.arange(len(log)), log.odometry_poses()
+        what = f"the chained odometry of all {len(log)} scans"
+    else:
+        file_ids, file_poses = _poses_file(args.poses, args.ignore_unknown)
+        order, ids = _scan_ids(file_ids, log, label, f"--poses {args.poses}")
+        poses = np.asarray(file_poses)[order]
+        what = f"the poses of {args.poses} ({ids.size} scans)"
+    lines.append(f"poses             {what}")
+    if estimated and ids.size >= 2:
+        lines.append(
+            f"ATE               {_ate_text(poses, log.reference[ids])} against {_against(log)}"
+        )
+    t = time.perf_counter()
+    grid = occupancy_grid(log.subset(ids), poses, resolution=args.resolution)
+    times.append(f"occupancy grid {time.perf_counter() - t:.3f} s")
+    q = map_quality(grid)
+    if sink is not None:
+        sink.write(
+            f"[map] occupancy grid: {grid.shape[1]} x {grid.shape[0]} cells  t "
+            f"{time.perf_counter() - t0:.3f} s\n"
+        )
+        sink.flush()
+    title = args.title if args.title is not None else f"{log.name}: {what}"
+
+    def draw(ax):
+        from .plotting import plot_occupancy
+
+        plot_occupancy(grid, ax=ax, title=title)
+
+    t = time.perf_counter()
+    _save_figure(draw, output, args.dpi)
+    times.append(f"image {time.perf_counter() - t:.3f} s")
+    x0, x1, y0, y1 = grid.extent
+    hit = "n/a" if q.hit_cells is None else str(q.hit_cells)
+    lines += [
+        f"map               {grid.shape[1]} x {grid.shape[0]} cells of {grid.resolution:g} m "
+        f"(x {x0:.2f}..{x1:.2f} m, y {y0:.2f}..{y1:.2f} m) from {ids.size} scans",
+        f"map quality       hit_cells {hit}, entropy {q.entropy:.4f} bits, fraction_confident "
+        f"{q.fraction_confident:.4f} (fewer hit cells, lower entropy: sharper walls; compare the "
+        "same scans at one resolution)",
+        f"time              {', '.join(times)}; total {time.perf_counter() - t0:.3f} s",
+        f"wrote             {output}",
+    ]
+    print("\n".join(lines))
+    return 0
+
+
 # ----------------------------------------------------------------------------- datasets
 def _where(name):
     d = datasets.info(name)
-    root = datasets.mirror()
-    if root is not None:
+    roots = datasets.mirrors()
+    for root in roots:  # the first folder that has the file is the one datasets.path reads
         p = root / d.relpath
         if p.is_file():
             return "mirror", str(p)
-        return "missing", f"not in the mirror LAGOLIB_DATA={root}: get it from {d.url}"
+    if len(roots) == 1:
+        return "missing", f"not in the mirror LAGOLIB_DATA={roots[0]}: get it from {d.url}"
+    if roots:
+        return "missing", f"in none of the LAGOLIB_DATA folders: get it from {d.url}"
     try:
         cache = datasets.cache_dir()
     except ImportError:  # pooch is needed for the default cache folder and for downloads
@@ -897,6 +1390,8 @@ def _cmd_datasets(args):
                 "kind": d.kind,
                 "vertices": d.vertices,
                 "edges": d.edges,
+                "scans": d.scans,
+                "beams": d.beams,
                 "status": status,
                 "where": where,
                 "url": d.url,
@@ -911,9 +1406,11 @@ def _cmd_datasets(args):
     if args.json:
         print(json.dumps({"datasets": rows, "examples": examples}, indent=1))
         return 0
-    root = datasets.mirror()
-    if root is not None:
-        print(f"benchmarks (from the mirror LAGOLIB_DATA={root}):")
+    roots = datasets.mirrors()
+    if len(roots) == 1:
+        print(f"benchmarks (from the mirror LAGOLIB_DATA={roots[0]}):")
+    elif roots:
+        print(f"benchmarks (from the mirrors LAGOLIB_DATA={os.pathsep.join(map(str, roots))}):")
     else:
         try:
             cache = f" {datasets.cache_dir()}"
@@ -922,9 +1419,16 @@ def _cmd_datasets(args):
         print(f"benchmarks (LAGOLIB_DATA is unset: downloaded on first use into the cache{cache}):")
     print(f"  {'name':<18}{'kind':<7}{'vertices':>9}{'edges':>8}  where")
     for r in rows:
+        if r["kind"] == "laser":
+            continue
         v = r["vertices"] if r["vertices"] or r["kind"] != "graph" else "-"
         print(f"  {r['name']:<18}{r['kind']:<7}{v:>9}{r['edges']:>8}  {r['where']}")
     print("  (vertices '-': the file has edge lines only; poses come from the odometry guess)")
+    print("laser logs (Carmen; their reference poses are GMapping's estimate, not ground truth):")
+    print(f"  {'name':<18}{'kind':<7}{'scans':>9}{'beams':>8}  where")
+    for r in rows:
+        if r["kind"] == "laser":
+            print(f"  {r['name']:<18}{'laser':<7}{r['scans']:>9}{r['beams']:>8}  {r['where']}")
     print("shipped examples (offline, simulated with ground truth):")
     for e in examples:
         print(f"  {e['name']:<18}{'graph':<7}{e['vertices']:>9}{e['edges']:>8}  {e['where']}")
@@ -932,6 +1436,66 @@ def _cmd_datasets(args):
 
 
 # ----------------------------------------------------------------------------- parser
+def _add_frontend_options(p):
+    """The options of the front end (``frontend``, and ``map`` of a LOG); None: the default."""
+    g = p.add_argument_group("front end (lagolib.frontend.build_graph)")
+    g.add_argument(
+        "--min-translation",
+        type=_positive_float,
+        metavar="M",
+        help=f"a new keyframe after M metres of odometry (default: {_FE['min_translation']:g})",
+    )
+    g.add_argument(
+        "--min-rotation",
+        type=_positive_float,
+        metavar="DEG",
+        help=f"... or after DEG degrees of turning (default: {np.degrees(_FE['min_rotation']):g})",
+    )
+    g.add_argument(
+        "--translation-sigma",
+        type=_positive_float,
+        metavar="FRACTION",
+        help="the odometry prior of the sequential matches: standard deviation of the position, "
+        f"a fraction of the distance travelled (default: {_FE['translation_sigma']:g})",
+    )
+    g.add_argument(
+        "--rotation-sigma",
+        type=_positive_float,
+        metavar="DEG",
+        help="... and of the heading, degrees per keyframe increment (default: "
+        f"{np.degrees(_FE['rotation_sigma']):g}; real odometry's heading drifts: INTEL's by "
+        "about -3.9 deg per metre)",
+    )
+    g.add_argument(
+        "--match-range",
+        type=_positive_float,
+        metavar="M",
+        help=f"returns farther than M metres are not scan-matched (default: {_FE['max_range']:g})",
+    )
+    g.add_argument(
+        "--batch",
+        action="store_true",
+        help="gate every candidate against the chain of sequential matches, optimize nothing "
+        "(default: incremental, Gauss-Newton after every accepted closure)",
+    )
+    g.add_argument(
+        "--simulated-odometry",
+        nargs=2,
+        type=_nonnegative_float,
+        metavar=("FRACTION", "DEG"),
+        help="replace the log's REAL odometry increments by its reference increments plus "
+        "Gaussian noise: FRACTION of the translation and DEG degrees per step (the issue's "
+        f"experiment: {_SIM_SIGMA[0]:g} {np.degrees(_SIM_SIGMA[1]):g}); default: the real "
+        "increments",
+    )
+    g.add_argument(
+        "--seed",
+        type=_nonnegative_int,
+        metavar="N",
+        help="seed of --simulated-odometry's noise (default: 0)",
+    )
+
+
 def _parser():
     debug = _Parser(add_help=False)
     debug.add_argument(
@@ -952,12 +1516,15 @@ def _parser():
         formatter_class=_Formatter,
         description=(
             "Planar pose-graph SLAM from the shell: inspect, solve (LAGO, Gauss-Newton, "
-            "Levenberg-Marquardt, SGD), certify global optimality and plot g2o/TORO files.\n\n"
+            "Levenberg-Marquardt, SGD), certify global optimality and plot g2o/TORO files; "
+            "build a pose graph from a laser log and draw its map.\n\n"
             "examples:\n"
             "  lagolib info intel\n"
             "  lagolib solve graph.g2o --method lago+gn --progress -o solved.g2o --plot solved.png\n"
             "  lagolib certify mit --initial odometry\n"
             "  lagolib plot solved.g2o --ellipses -o solved.png\n"
+            "  lagolib frontend intel_laser --progress -o intel_fe.g2o\n"
+            "  lagolib map intel_laser -o intel_map.png\n"
             "  lagolib datasets\n\n"
             f"exit status: 0 ok, 1 error, 2 usage error, {NOT_CERTIFIED} not certified (certify, "
             "solve --certify), 130 interrupted"
@@ -1162,16 +1729,111 @@ def _parser():
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="image (.png, .pdf, .svg)")
     p.set_defaults(func=_cmd_plot)
 
+    log_help = (
+        "a Carmen log file (plain or .gz), a laser log's name from 'lagolib datasets' "
+        f"(intel_laser, ...), or '{SIMULATED}' (the simulated office, offline)"
+    )
+    p = sub.add_parser(
+        "frontend",
+        parents=[debug],
+        formatter_class=_Formatter,
+        help="build a pose graph from a laser log (scan matching, loop closures)",
+        description=(
+            "Build a pose graph from a Carmen laser log (lagolib.frontend.build_graph): a keyframe\n"
+            "every M metres or DEG degrees of odometry; a sequential edge between consecutive\n"
+            "keyframes by point-to-line ICP with the odometry increment as a prior; loop-closure\n"
+            "candidates gated by the Mahalanobis distance under the relative covariance\n"
+            "(chapter 3), then verified by scan matching with explicit rules (inliers, residual,\n"
+            "degeneracy: corridors, ambiguity, consistency with the prediction).  Incremental by\n"
+            "default (Gauss-Newton after every accepted closure); --batch gates every candidate\n"
+            "against the chain of sequential matches.\n"
+            "The odometry is the log's REAL increments, unless --simulated-odometry replaces\n"
+            "them (the reference increments plus seeded Gaussian noise).\n"
+            "Vertex ids are the scans' indices in the log (0-based, in FLASER order), so a result\n"
+            "compares with the log's reference poses.  OUT holds the front end's estimate: solve\n"
+            "it with 'lagolib certify OUT', draw its map with 'lagolib map OUT --log LOG'.\n"
+            "The summary (stdout) counts the candidates gated, matched, accepted and rejected (by\n"
+            "rule), the wrong closures (off the log's reference by > 0.5 m or 5 deg: for a real\n"
+            "log GMapping's corrected poses, an estimate; the ground truth for a simulated one)\n"
+            "and the time per stage; --progress prints the stages on stderr as they go.\n\n"
+            "examples:\n"
+            "  lagolib frontend intel_laser --progress -o intel_fe.g2o\n"
+            "  lagolib frontend intel_laser --simulated-odometry 0.05 2 --seed 1 -o intel_sim.g2o\n"
+            f"  lagolib frontend {SIMULATED} --batch -o office.g2o"
+        ),
+    )
+    p.add_argument("log", metavar="LOG", help=log_help)
+    p.add_argument(
+        "-o", "--output", required=True, metavar="OUT", help="where to write (.g2o or .graph)"
+    )
+    p.add_argument("--progress", action="store_true", help="the stages on stderr as they go")
+    _add_frontend_options(p)
+    p.set_defaults(func=_cmd_frontend)
+
+    p = sub.add_parser(
+        "map",
+        parents=[debug, reading],
+        formatter_class=_Formatter,
+        help="the occupancy grid map of a laser log (front end, optimization, map)",
+        description=(
+            "Draw the occupancy grid map (log odds by ray casting, Thrun et al. 2005, Table 9.1;\n"
+            "lagolib.occupancy) of a laser log's scans at a set of poses:\n"
+            "  LOG                    the front end (as 'lagolib frontend', same options), then\n"
+            "                         certify.solve (LAGO -> Gauss-Newton -> certificate), then\n"
+            "                         the keyframes' scans at the optimized poses: one call\n"
+            "  LOG --poses reference  every scan at the log's reference poses (for a real log\n"
+            "                         GMapping's corrected poses)\n"
+            "  LOG --poses odometry   every scan at its chained odometry\n"
+            "  LOG --poses FILE       the scans FILE's ids name, at its poses (a .g2o/.graph\n"
+            "                         file, or 'id x y theta' lines)\n"
+            "  GRAPH --log LOG        the scans the graph's vertex ids name, at its poses (e.g.\n"
+            "                         'lagolib frontend' then 'lagolib certify -o'); with --poses\n"
+            "                         reference or odometry: the same scans at those poses\n"
+            "Vertex ids are the scans' indices in the log (0-based, in FLASER order).  Prints the\n"
+            "ATE against the log's reference when the poses are an estimate, and the map's\n"
+            "quality (lagolib.occupancy.map_quality: hit_cells and entropy, lower is sharper;\n"
+            "fraction_confident, higher is).\n\n"
+            "examples:\n"
+            "  lagolib map intel_laser -o intel_map.png\n"
+            "  lagolib map intel_laser --poses reference -o intel_gmapping.png\n"
+            "  lagolib map intel_fe.g2o --log intel_laser --resolution 0.1 -o intel_fe.png"
+        ),
+    )
+    p.add_argument(
+        "input",
+        metavar="INPUT",
+        help=f"a laser LOG ({log_help}), or a pose GRAPH (g2o or TORO file, or a name from "
+        "'lagolib datasets') with --log",
+    )
+    p.add_argument("--log", metavar="LOG", help="the laser log of a GRAPH input: its scans")
+    p.add_argument(
+        "--poses",
+        metavar="P",
+        help="'reference', 'odometry', or a FILE of poses whose ids are scan indices (.g2o, "
+        ".graph, or 'id x y theta' lines); default: optimize (LOG) or the graph's (GRAPH)",
+    )
+    p.add_argument(
+        "--resolution", type=_positive_float, default=0.05, metavar="M", help="cell side, metres"
+    )
+    p.add_argument("--title", default=None, help="title (default: the log's name and the poses)")
+    p.add_argument("--dpi", type=_dpi, default=_DPI, help="resolution (10 to 2000)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="image (.png, .pdf, .svg)")
+    p.add_argument("--progress", action="store_true", help="the stages on stderr as they go")
+    _add_frontend_options(p)
+    p.set_defaults(func=_cmd_map)
+
     p = sub.add_parser(
         "datasets",
         parents=[debug],
         formatter_class=_Formatter,
         help="the registered benchmarks and where they are",
         description=(
-            "List the registered benchmarks (name, kind, vertex and edge counts) and where each\n"
-            "one is: in the LAGOLIB_DATA mirror, in the download cache, or the URL it would be\n"
-            "fetched from on first use; then the examples shipped with lagolib.\n\n"
-            "example:\n  LAGOLIB_DATA=/data/posegraphs lagolib datasets"
+            "List the registered benchmarks (name, kind, vertex and edge counts; the laser logs\n"
+            "with their scan and beam counts) and where each one is: in a LAGOLIB_DATA mirror\n"
+            "(several folders separated by ':', as in PATH: the first that has the file), in the\n"
+            "download cache, or the URL it would be fetched from on first use; then the examples\n"
+            "shipped with lagolib.\n\n"
+            "example:\n  LAGOLIB_DATA=/data/posegraphs:/data/laser lagolib datasets"
         ),
     )
     p.add_argument("--json", action="store_true", help="print the list as JSON")
@@ -1210,6 +1872,15 @@ _SHELL_PHRASES = (
     ),
     (r"lagolib\.datasets\.path\('([^']*)'\)", r"'lagolib info \1'"),
     (r"\bout_dir='([^']*)'", r"OUTDIR \1"),
+    (
+        r"\(raise max_range, or drop the scan from the log\)",
+        "(raise --match-range, or drop the scan)",
+    ),
+    (
+        r"coarsen the resolution, or pass extent=\(xmin, xmax, ymin, ymax\) around the region "
+        r"you need",
+        "use a coarser --resolution",
+    ),
 )
 #: Options of the commands handed to another module's ``main`` (not in :func:`_parser`).
 _DELEGATED_OPTIONS = {"book": {"-h", "--help", "--book", "--force"}}
@@ -1291,7 +1962,9 @@ def _dispatch(argv):
     parser = _parser()
     args = parser.parse_args(argv)
     if args.command is None:
-        raise _UsageError("a command is required (info, solve, certify, plot, datasets, book)")
+        raise _UsageError(
+            "a command is required (info, solve, certify, plot, frontend, map, datasets, book)"
+        )
     return args.func(args)
 
 
@@ -1316,7 +1989,7 @@ def main(argv=None) -> int:
     except _UsageError as exc:
         if debug:
             traceback.print_exc()
-        known = ("info", "solve", "certify", "plot", "datasets", *COMMANDS)
+        known = ("info", "solve", "certify", "plot", "frontend", "map", "datasets", *COMMANDS)
         hint = f"lagolib {command} --help" if command in known else "lagolib --help"
         print(
             f"lagolib: error: {_for_shell(_one_line(exc), command)} (see '{hint}')",

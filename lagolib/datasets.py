@@ -1,13 +1,17 @@
-"""Benchmark pose graphs by name: from a local mirror or downloaded once, always checksummed.
+"""Benchmark pose graphs and laser logs by name: from a mirror or downloaded once, checksummed.
 
 Two kinds of data are reachable from here.
 
-*Public benchmarks* (INTEL, M3500, CSAIL, FR079, MIT, city10000, ring, …) are not shipped with
-lagolib.  :func:`path` finds one of them
+*Public benchmarks* are not shipped with lagolib: the pose graphs (INTEL, M3500, CSAIL, FR079,
+MIT, city10000, ring, …; kinds ``"graph"`` and ``"poses"``) and four Radish laser logs in Carmen
+format (``intel_laser``, ``fr079_laser``, ``csail_laser``, ``aces_laser``; kind ``"laser"``, read
+into a :class:`~lagolib.scans.LaserLog`).  :func:`path` finds one of them
 
-1. in the folder named by the environment variable ``LAGOLIB_DATA`` (a mirror laid out as the
-   ``relpath`` column of :func:`info`), if that variable is set — and then *only* there: a missing
-   file is an error, never a silent download; or
+1. in the folders named by the environment variable ``LAGOLIB_DATA`` (mirrors laid out as the
+   ``relpath`` column of :func:`info`; several folders are separated by ``os.pathsep``, ``:`` on
+   POSIX, as in ``PATH`` — e.g. ``posegraphs:laser`` — and the first that holds the file wins),
+   if that variable is set — and then *only* there: a file none of them holds is an error,
+   never a silent download; or
 2. in lagolib's download cache (``LAGOLIB_CACHE``, default the user cache folder; created on the
    first download), fetched with `pooch <https://www.fatiando.org/pooch/>`_'s HTTP downloader
    from the public repository it comes from, pinned to a commit (never when ``LAGOLIB_OFFLINE``
@@ -18,13 +22,15 @@ lagolib.  :func:`path` finds one of them
 
 Either way the file's SHA-256 must equal the registry's, or :class:`~lagolib.errors.DatasetError`
 is raised (for a cached file: "the cached file ... is corrupt").  A misconfiguration is named
-as such: ``LAGOLIB_DATA`` naming a file, a missing folder or ``~user`` of an unknown user,
-``LAGOLIB_CACHE`` naming a file, and ``LAGOLIB_OFFLINE``/``LAGOLIB_TIMEOUT`` values that mean
-nothing (an :class:`~lagolib.errors.OptionError`).
+as such: ``LAGOLIB_DATA`` (or one of its folders) naming a file, a missing folder or ``~user``
+of an unknown user, ``LAGOLIB_CACHE`` naming a file, and ``LAGOLIB_OFFLINE``/``LAGOLIB_TIMEOUT``
+values that mean nothing (an :class:`~lagolib.errors.OptionError`).
 
 *Shipped examples* (``square_loop``, ``manhattan200``, ``grid100``) are small simulated graphs in
 the repository's ``data/`` folder, made by ``data/make_data.py``; :func:`example` loads one with
-its ground truth, offline.
+its ground truth, offline.  A laser log's offline stand-in is a simulated log
+(:func:`lagolib.laser_world.simulate_log`): :func:`load_laser_or_simulated` returns the real log
+when it can be had, else the simulated one, and says which.
 
 Examples
 --------
@@ -34,6 +40,8 @@ Examples
 (160, (160, 3))
 >>> datasets.info("intel").vertices, datasets.info("intel").edges
 (1228, 1483)
+>>> datasets.info("intel_laser").scans, datasets.info("intel_laser").beams
+(910, 180)
 """
 
 from __future__ import annotations
@@ -54,6 +62,7 @@ from .checks import check_bool
 from .errors import DatasetError, OptionError, OptionTypeError
 from .graph import PoseGraph
 from .io import read, read_poses
+from .scans import LaserLog, read_carmen
 
 __all__ = [
     "Dataset",
@@ -65,6 +74,10 @@ __all__ = [
     "load",
     "Loaded",
     "load_or_example",
+    "LoadedLog",
+    "load_laser_or_simulated",
+    "mirror",
+    "mirrors",
     "example",
     "examples",
 ]
@@ -85,11 +98,16 @@ class Dataset:
     url : str
         Where it is downloaded from (a public repository, pinned to a commit).
     kind : str
-        ``"graph"`` (g2o/TORO, read with :func:`lagolib.io.read`) or ``"poses"`` (ground truth,
-        read with :func:`lagolib.io.read_poses`).
+        ``"graph"`` (g2o/TORO, read with :func:`lagolib.io.read`), ``"poses"`` (ground truth,
+        read with :func:`lagolib.io.read_poses`) or ``"laser"`` (a Carmen log, read with
+        :func:`lagolib.scans.read_carmen`).
     vertices, edges : int
-        Counts of vertices and edges in the file (``vertices`` is 0 for edge-only files).
+        Counts of vertices and edges in the file (``vertices`` is 0 for edge-only files; both
+        are 0 for a laser log).
     description : str
+    scans, beams : int
+        A laser log's number of scans (``FLASER`` lines) and beams per scan; 0 for the other
+        kinds.
     """
 
     name: str
@@ -100,6 +118,8 @@ class Dataset:
     vertices: int
     edges: int
     description: str
+    scans: int = 0
+    beams: int = 0
 
 
 _NANO = "https://raw.githubusercontent.com/gisbi-kim/nano-pgo/b85562f0acda4d3e556f5b2d27c14156336df75b/data/"
@@ -112,6 +132,19 @@ _SPARSIFY = (
     "https://raw.githubusercontent.com/Lecanyu/SparsifyPoseGraph/"
     "8a456d0164e92c34817a10aa456d8af12c2ddaf6/datasets/"
 )
+# the Radish logs as republished by acschaefer/ple (its readme credits Radish)
+_CARMEN = (
+    "https://raw.githubusercontent.com/acschaefer/ple/"
+    "8af88b28759f8a48b1bf33083a85f2013907c41d/data/carmen/"
+)
+
+
+def _laser(name, file, sha256, scans, beams, description):
+    """A Radish laser log: ``carmen/<file>`` in a mirror, its reference poses GMapping's."""
+    return Dataset(
+        name, f"carmen/{file}", sha256, _CARMEN + file, "laser", 0, 0, description, scans, beams
+    )
+
 
 _REGISTRY = {
     d.name: d
@@ -286,6 +319,38 @@ _REGISTRY = {
             0,
             "ground-truth poses of ring",
         ),
+        _laser(
+            "intel_laser",
+            "intel-corrected.log.gz",
+            "71bef16e9926506cf7417995ef35ace09dbd5de067fd042a3aab85188b5480dc",
+            910,
+            180,
+            "Intel Research Lab Seattle (Dirk Hähnel), Radish; poses GMapping's",
+        ),
+        _laser(
+            "fr079_laser",
+            "freiburg-079-corrected.log.gz",
+            "0631d30baf4b9d1d209af47da9096e876e1b4cb3d5a2d68ef9c39c5a2360a466",
+            4791,
+            360,
+            "Freiburg building 079 (Cyrill Stachniss), Radish; poses GMapping's",
+        ),
+        _laser(
+            "csail_laser",
+            "csail-corrected.log.gz",
+            "a98de24fc319651f231f9a8625b78bf1972312b86f7b00d2ddc979c4ac92ae2d",
+            406,
+            361,
+            "MIT CSAIL building, Radish; poses GMapping's",
+        ),
+        _laser(
+            "aces_laser",
+            "aces-corrected.log.gz",
+            "5434d44384166250608a64d3a8c32de84512f82c46cb60a2657f138592024569",
+            440,
+            180,
+            "UT Austin ACES building (Patrick Beeson), Radish; poses GMapping's",
+        ),
     ]
 }
 
@@ -299,6 +364,8 @@ def _name(name, where, what="name"):
     """``name`` if it is a str; else an :class:`~lagolib.errors.OptionTypeError` naming ``where``."""
     if not isinstance(name, str):
         example = "'square_loop'" if what == "fallback" or where == "example" else "'intel'"
+        if where == "load_laser_or_simulated":
+            example = "'intel_laser'"
         raise OptionTypeError(
             f"{where}: {what} must be a str, one name such as {example}; got {name!r} "
             f"({type(name).__name__})"
@@ -366,43 +433,106 @@ def _check(d, p, cached=False):
     return p
 
 
-def _folder_variable(variable):
-    """The folder named by the environment variable ``variable`` (``~`` expanded), or None when
-    it is unset or empty; a DatasetError when it names a file or a user that does not exist."""
-    value = os.environ.get(variable, "")
-    if not value:
-        return None
+def _folder(variable, value, whole=None):
+    """The folder ``value`` of the environment variable ``variable`` (``~`` expanded); a
+    DatasetError when it names a file or a user that does not exist.  ``whole`` is the
+    variable's whole value when ``value`` is one of its several folders (``LAGOLIB_DATA``)."""
+    said = f"{variable}={value}" if whole is None else f"{variable}={whole}: its folder {value}"
     try:
         folder = Path(value).expanduser()
     except RuntimeError:  # '~someone' of a user that does not exist, or no home folder
         user = value.split("/", 1)[0].split(os.sep, 1)[0]
         raise DatasetError(
-            f"{variable}={value}: cannot expand {user!r} (no such user, or no home folder); "
+            f"{said}: cannot expand {user!r} (no such user, or no home folder); "
             "give the folder's full path"
         ) from None
     if folder.exists() and not folder.is_dir():
-        raise DatasetError(
-            f"{variable}={value} is a file, not a folder; set {variable} to a folder, or unset it"
-        )
+        fix = f"set {variable} to a folder" if whole is None else "name folders only"
+        raise DatasetError(f"{said} is a file, not a folder; {fix}, or unset {variable}")
     return folder
 
 
-def mirror():
-    """The folder named by ``LAGOLIB_DATA`` as a Path, or None when the variable is unset or empty.
+def _folder_variable(variable):
+    """The folder named by the environment variable ``variable`` (``~`` expanded), or None when
+    it is unset or empty; a DatasetError when it names a file or a user that does not exist."""
+    value = os.environ.get(variable, "")
+    return _folder(variable, value) if value else None
+
+
+def mirrors():
+    """The folders named by ``LAGOLIB_DATA``, in lookup order; ``[]`` when it is unset or empty.
+
+    ``LAGOLIB_DATA`` holds one folder, or several separated by ``os.pathsep`` (``:`` on POSIX,
+    ``;`` on Windows), as ``PATH`` does: e.g. the pose-graph mirror and the laser-log mirror,
+    ``/data/posegraphs:/data/laser``.  Empty entries (a trailing ``:``) are ignored.  A file is
+    taken from the first folder that has it (and must pass its checksum there).
+
+    Returns
+    -------
+    list of pathlib.Path
 
     Raises
     ------
     DatasetError
-        ``LAGOLIB_DATA`` names a file, a folder that does not exist, or ``~user`` of an unknown
-        user.
+        ``LAGOLIB_DATA`` or one of its folders names a file, a folder that does not exist, or
+        ``~user`` of an unknown user (the message names which).
+
+    Examples
+    --------
+    >>> import os
+    >>> from unittest import mock
+    >>> from lagolib import datasets
+    >>> a, b = os.path.dirname(datasets.__file__), os.path.dirname(os.__file__)
+    >>> with mock.patch.dict(os.environ, LAGOLIB_DATA=a + os.pathsep + b + os.pathsep):
+    ...     print([str(f) for f in datasets.mirrors()] == [a, b], datasets.mirror() == Path(a))
+    True True
+    >>> with mock.patch.dict(os.environ, LAGOLIB_DATA=""):
+    ...     print(datasets.mirrors(), datasets.mirror())
+    [] None
     """
-    folder = _folder_variable("LAGOLIB_DATA")
-    if folder is not None and not folder.is_dir():
-        raise DatasetError(
-            f"LAGOLIB_DATA={os.environ['LAGOLIB_DATA']}: no such folder; set LAGOLIB_DATA to the "
-            "folder that mirrors the benchmarks, or unset it to use the download cache"
-        )
-    return folder
+    value = os.environ.get("LAGOLIB_DATA", "")
+    entries = [e for e in value.split(os.pathsep) if e]
+    whole = value if len(entries) > 1 else None
+    folders = []
+    for entry in entries:
+        folder = _folder("LAGOLIB_DATA", entry, whole)
+        if not folder.is_dir():
+            if whole is None:
+                raise DatasetError(
+                    f"LAGOLIB_DATA={value}: no such folder; set LAGOLIB_DATA to the folder that "
+                    "mirrors the benchmarks, or unset it to use the download cache"
+                )
+            raise DatasetError(
+                f"LAGOLIB_DATA={value}: its folder {entry} does not exist; list only existing "
+                f"folders (separated by {os.pathsep!r}), or unset LAGOLIB_DATA to use the "
+                "download cache"
+            )
+        folders.append(folder)
+    return folders
+
+
+def mirror():
+    """The first folder named by ``LAGOLIB_DATA`` as a Path, or None when it is unset or empty.
+
+    With one folder in ``LAGOLIB_DATA``, that folder; with several, the first (all of them are
+    checked, and :func:`mirrors` lists them).
+
+    Raises
+    ------
+    DatasetError
+        As :func:`mirrors`: ``LAGOLIB_DATA`` names a file, a folder that does not exist, or
+        ``~user`` of an unknown user.
+    """
+    folders = mirrors()
+    return folders[0] if folders else None
+
+
+def _in_mirrors(d, roots):
+    """The first ``root / d.relpath`` that is a file, or None."""
+    for root in roots:
+        if (root / d.relpath).is_file():
+            return root / d.relpath
+    return None
 
 
 def cache_dir():
@@ -446,8 +576,9 @@ def path(name, *, download=True):
     Raises
     ------
     DatasetError
-        Unknown name; ``LAGOLIB_DATA`` is set but lacks the file; ``LAGOLIB_DATA`` or
-        ``LAGOLIB_CACHE`` names a file or (``LAGOLIB_DATA``) a missing folder; the file's
+        Unknown name; ``LAGOLIB_DATA`` is set but none of its folders has the file;
+        ``LAGOLIB_DATA`` (one of its folders) or ``LAGOLIB_CACHE`` names a file or
+        (``LAGOLIB_DATA``) a missing folder; the file's
         checksum differs from the registry's (a mirrored, cached or downloaded file); the file
         is not cached and downloads are off (``download=False`` or ``LAGOLIB_OFFLINE``); the
         download failed (the message says why in one sentence).
@@ -458,13 +589,21 @@ def path(name, *, download=True):
     """
     d = info(name)
     download = check_bool(download, "download", "path")
-    root = mirror()
-    if root is not None:
-        p = root / d.relpath
-        if not p.is_file():
+    roots = mirrors()
+    if roots:
+        p = _in_mirrors(d, roots)
+        if p is None and len(roots) == 1:
             raise DatasetError(
-                f"LAGOLIB_DATA={root} has no file {d.relpath} (dataset {name!r}); put the file "
-                f"from {d.url} there, or unset LAGOLIB_DATA to download it into the cache"
+                f"LAGOLIB_DATA={roots[0]} has no file {d.relpath} (dataset {name!r}); put the "
+                f"file from {d.url} there, or add the folder that has it to LAGOLIB_DATA "
+                f"(folders separated by {os.pathsep!r}), or unset LAGOLIB_DATA to download it "
+                "into the cache"
+            )
+        if p is None:
+            raise DatasetError(
+                f"none of the LAGOLIB_DATA folders {', '.join(map(str, roots))} has the file "
+                f"{d.relpath} (dataset {name!r}); put the file from {d.url} into one of them, or "
+                "unset LAGOLIB_DATA to download it into the cache"
             )
         return _check(d, p)
     folder = cache_dir()
@@ -495,9 +634,10 @@ def available(name):
         As :func:`path` does for an unknown name or an unusable ``LAGOLIB_DATA``/``LAGOLIB_CACHE``.
     """
     d = info(name)
-    root = mirror()
-    p = (root / d.relpath) if root is not None else cache_dir() / _cached_name(d)
-    return p.is_file()
+    roots = mirrors()
+    if roots:
+        return _in_mirrors(d, roots) is not None
+    return (cache_dir() / _cached_name(d)).is_file()
 
 
 _OFF = ("", "0", "false", "no", "off")
@@ -732,9 +872,14 @@ def load(name, *, download=True):
         For ``kind == "graph"``.
     (ids, poses)
         For ``kind == "poses"`` (see :func:`lagolib.io.read_poses`).
+    LaserLog
+        For ``kind == "laser"`` (:func:`lagolib.scans.read_carmen`), named ``name``: ``reference``
+        holds the log's corrected poses — GMapping's estimate, not ground truth.
     """
     d = info(name)
     p = path(name, download=download)
+    if d.kind == "laser":
+        return read_carmen(p, name=name)
     return read(p) if d.kind == "graph" else read_poses(p)
 
 
@@ -795,6 +940,11 @@ def load_or_example(name, fallback, *, download=True, quiet=False):
     quiet = check_bool(quiet, "quiet", where)
     if fallback not in _EXAMPLES:
         raise DatasetError(f"unknown example {fallback!r}; shipped: {', '.join(_EXAMPLES)}")
+    if d.kind == "laser":
+        raise DatasetError(
+            f"dataset {name!r} is a laser log, not a graph; use "
+            f"load_laser_or_simulated({name!r}) or load({name!r})"
+        )
     if d.kind != "graph":
         raise DatasetError(f"dataset {name!r} holds {d.kind}, not a graph; use load({name!r})")
     had = mirror() is not None or available(name)
@@ -818,6 +968,117 @@ def load_or_example(name, fallback, *, download=True, quiet=False):
     if not quiet:
         print(note)
     return Loaded(graph, name, True, None, note)
+
+
+@dataclass(frozen=True)
+class LoadedLog:
+    """What :func:`load_laser_or_simulated` found: a real laser log or the simulated stand-in.
+
+    Attributes
+    ----------
+    log : LaserLog
+        The scans.  A real log's ``reference`` is GMapping's estimate (``reference_kind
+        "gmapping"``); the simulated log's is the ground truth (``"truth"``).
+    source : str
+        The registry name (e.g. ``"intel_laser"``) of the real log, or ``"simulated"``.
+    offline : bool
+        True when the simulated stand-in is used (the real log could not be had).
+    note : str
+        The one line printed: what is used and, for the stand-in, why and how to get the real log.
+    """
+
+    log: LaserLog
+    source: str
+    offline: bool
+    note: str
+
+
+def load_laser_or_simulated(name, *, download=True, quiet=False):
+    """A Radish laser log when it can be had, else a simulated one — and one line saying which.
+
+    The laser-log counterpart of :func:`load_or_example`, with the same rules: the log comes
+    from ``LAGOLIB_DATA``, the cache, or (when ``download`` and the network is there) a
+    checksummed download; when none works — downloads off (``LAGOLIB_OFFLINE`` or
+    ``download=False``), a failed download, a corrupt cached file — the simulated laser world of
+    :func:`lagolib.laser_world.simulate_log` (its defaults: seeded, so every run gives the same
+    log) is used instead, and the printed line says why and how to get the real log.  A mirror
+    that is set but lacks or corrupts the file, and an unusable ``LAGOLIB_DATA``/
+    ``LAGOLIB_CACHE``/``LAGOLIB_OFFLINE``, are still errors (:func:`path`).
+
+    Parameters
+    ----------
+    name : str
+        A registered laser log: ``"intel_laser"``, ``"fr079_laser"``, ``"csail_laser"`` or
+        ``"aces_laser"``.
+    download : bool
+        Try the network when the log is neither mirrored nor cached.
+    quiet : bool
+        Do not print the line (it is in :attr:`LoadedLog.note` either way).
+
+    Returns
+    -------
+    LoadedLog
+        ``source`` is ``name`` and ``offline`` False for the real log; ``"simulated"`` and True
+        for the stand-in.
+
+    Raises
+    ------
+    DatasetError
+        ``name`` is not a laser log; or as :func:`path`, for a mirror without the file or with a
+        corrupt copy.
+
+    Examples
+    --------
+    Offline, with no mirror and an empty cache, the simulated office stands in:
+
+    >>> import os, tempfile
+    >>> from unittest import mock
+    >>> with tempfile.TemporaryDirectory() as cache, mock.patch.dict(
+    ...     os.environ, LAGOLIB_DATA="", LAGOLIB_OFFLINE="1", LAGOLIB_CACHE=cache
+    ... ):
+    ...     loaded = load_laser_or_simulated("intel_laser", quiet=True)
+    >>> loaded.source, loaded.offline, loaded.log.reference_kind
+    ('simulated', True, 'truth')
+    >>> loaded.note.startswith("Using a simulated laser log (")
+    True
+    """
+    where = "load_laser_or_simulated"
+    d = info(_name(name, where))
+    download = check_bool(download, "download", where)
+    quiet = check_bool(quiet, "quiet", where)
+    if d.kind != "laser":
+        lasers = ", ".join(n for n in names() if _REGISTRY[n].kind == "laser")
+        raise DatasetError(
+            f"{where}: dataset {name!r} is a {d.kind} file, not a laser log; laser logs: {lasers}"
+        )
+    had = mirror() is not None or available(name)
+    try:
+        log = load(name, download=download)
+    except DatasetError as exc:
+        reason = getattr(exc, "reason", None)
+        if reason is None:  # a mirror that lacks or corrupts a file is the user's to fix
+            raise
+        from .laser_world import simulate_log
+
+        sim = simulate_log()
+        k, n = sim.ranges.shape
+        note = (
+            f"Using a simulated laser log ({k} scans of {n} beams, its reference poses the ground "
+            f"truth) instead of {name!r}: {reason}. For the real log, "
+            f"{exc.advice.format(name=name)}, or set LAGOLIB_DATA to a mirror."
+        )
+        if not quiet:
+            print(note)
+        return LoadedLog(sim, "simulated", True, note)
+    got = "" if had else f"; downloaded from {d.url} into {cache_dir()}"
+    k, n = log.ranges.shape
+    note = (
+        f"Using the Radish laser log {name!r} ({k} scans of {n} beams; its reference poses are "
+        f"GMapping's estimate, not ground truth{got})."
+    )
+    if not quiet:
+        print(note)
+    return LoadedLog(log, name, False, note)
 
 
 # ---------------------------------------------------------------------- shipped examples

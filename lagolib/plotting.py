@@ -13,6 +13,7 @@ import numpy as np
 from .checks import check_bool, check_int, check_real
 from .errors import GraphError, OptionError, OptionTypeError
 from .graph import PoseGraph, _numeric, _shown, as_graph_poses, check_graph, check_poses
+from .occupancy import OccupancyGrid
 from .topology import spanning_tree
 
 __all__ = [
@@ -22,6 +23,7 @@ __all__ = [
     "plot_poses",
     "covariance_ellipse",
     "plot_covariance_ellipses",
+    "plot_occupancy",
 ]
 
 
@@ -681,3 +683,48 @@ def plot_covariance_ellipses(
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     return ax
+
+
+def plot_occupancy(grid, ax=None, *, title=None, threshold=None, **kw):
+    """Draw an occupancy grid as a grey image in world coordinates (metres).
+
+    Occupied cells black, free white, unknown mid grey (:meth:`OccupancyGrid.image`), placed at
+    the grid's world-frame ``extent`` so that poses and trajectories can be drawn on top.
+
+    Parameters
+    ----------
+    grid : OccupancyGrid
+        From :func:`lagolib.occupancy.occupancy_grid`.
+    ax : matplotlib.axes.Axes, optional
+    title : str, optional
+    threshold : float, optional
+        None: shades of grey ``255 (1 - p)``; a number: three levels (``OccupancyGrid.classify``).
+    **kw
+        Passed to ``ax.imshow`` (e.g. ``alpha``, ``zorder``).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from lagolib.occupancy import OccupancyGrid
+    >>> grid = OccupancyGrid(np.array([[3.5, -2.0], [0.0, 0.0]]), 0.5, (1.0, 2.0))
+    >>> ax = plot_occupancy(grid)
+    >>> ax.images[0].get_extent()
+    [1.0, 2.0, 2.0, 3.0]
+    """
+    where = "plot_occupancy"
+    if not isinstance(grid, OccupancyGrid):
+        raise OptionTypeError(
+            f"{where}: grid must be an OccupancyGrid (from lagolib.occupancy.occupancy_grid); "
+            f"got {_shown(grid)}"
+        )
+    title = _check_title(title, where)
+    image = grid.image(threshold)
+    ax = _axes(ax, where)
+    kw.setdefault("cmap", "gray")
+    kw.setdefault("interpolation", "nearest")
+    _drawn(where, "**kw", ax.imshow, image, extent=grid.extent, vmin=0, vmax=255, **kw)
+    return _finish(ax, title, legend=None)

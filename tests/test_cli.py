@@ -225,8 +225,9 @@ def test_script_datasets_lists_every_benchmark_and_its_url_offline(tmp_path):
     for name in datasets.names():
         d = datasets.info(name)
         vertices = d.vertices if d.vertices or d.kind != "graph" else "-"
+        a, b = (d.scans, d.beams) if d.kind == "laser" else (vertices, d.edges)  # laser: own table
         pattern = (
-            rf"^  {re.escape(name)}\s+{d.kind}\s+{vertices}\s+{d.edges}  "
+            rf"^  {re.escape(name)}\s+{d.kind}\s+{a}\s+{b}  "
             rf"would be fetched from {re.escape(d.url)}$"
         )
         assert re.search(pattern, out, re.M), (name, out)
@@ -661,10 +662,12 @@ def test_datasets_with_the_mirror(mirror, capsys):
     assert sorted(rows) == datasets.names()
     for name, r in rows.items():
         assert r["status"] == "mirror", r
-        assert r["where"] == str(mirror / datasets.info(name).relpath)
-        assert (r["vertices"], r["edges"]) == (
+        assert r["where"] == str(datasets.path(name, download=False))  # the first folder with it
+        assert (r["vertices"], r["edges"], r["scans"], r["beams"]) == (
             datasets.info(name).vertices,
             datasets.info(name).edges,
+            datasets.info(name).scans,
+            datasets.info(name).beams,
         )
 
 

@@ -26,8 +26,16 @@ def test_registry_entries_are_complete():
         d = datasets.info(name)
         assert len(d.sha256) == 64 and int(d.sha256, 16) >= 0
         assert d.url.startswith("https://") and d.url.endswith(d.relpath.split("/")[-1])
-        assert d.kind in ("graph", "poses")
+        assert d.kind in ("graph", "poses", "laser")
+        # a laser log has scans and beams, a graph file vertices and edges: never both
+        assert (d.scans > 0 and d.beams > 0) == (d.kind == "laser") == (d.vertices == d.edges == 0)
     assert {"intel", "m3500", "csail", "fr079", "mit", "city10000"} <= set(datasets.names())
+    assert {n for n in datasets.names() if datasets.info(n).kind == "laser"} == {
+        "intel_laser",
+        "fr079_laser",
+        "csail_laser",
+        "aces_laser",
+    }
 
 
 def test_mirror_without_the_file_is_an_error_not_a_skip(tmp_path, monkeypatch):

@@ -24,10 +24,11 @@ _spec.loader.exec_module(ei)
 
 
 def _papers():
-    data = os.environ.get("LAGOLIB_DATA")
+    # the first of LAGOLIB_DATA's folders (several are separated by os.pathsep): the pose graphs
+    data = [e for e in os.environ.get("LAGOLIB_DATA", "").split(os.pathsep) if e]
     if not data:
         return None
-    folder = Path(data).resolve().parents[1] / "papers"
+    folder = Path(data[0]).resolve().parents[1] / "papers"
     return folder if folder.is_dir() else None
 
 

@@ -14,7 +14,8 @@ LAYERS = [
     ["se2"],
     ["checks"],
     ["graph"],
-    ["io", "simulate", "metrics"],
+    ["io", "simulate", "metrics", "occupancy", "scans", "scan_matching"],
+    ["laser_world"],
     ["datasets"],
     ["topology"],
     ["linalg"],
@@ -24,6 +25,7 @@ LAYERS = [
     ["certify"],
     ["plotting"],
     ["uncertainty"],
+    ["frontend"],
     ["book"],
     ["cli"],
 ]
