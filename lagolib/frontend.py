@@ -177,9 +177,11 @@ class ClosureRules:
         the candidate is rejected when a placement ``0.5 m`` away scores this close to the best
         (:attr:`lagolib.scan_matching.Correlation.ambiguity`): repeated structure.
     max_conflicts : float
-        Fraction of the new scan's returns that, placed by the match, lie in space the old
-        scan saw through (:func:`lagolib.scan_matching.free_space_conflicts`): an alias puts
-        walls where the old scan saw none.
+        Fraction of the new scan's returns that, placed by the match, lie in space an old scan
+        saw through (:func:`lagolib.scan_matching.free_space_conflicts`), for the matched scan
+        ``i`` and its ``pass_width`` neighbours each side on the old pass (placed by the
+        graph): an alias fits one scan but puts walls where the old pass saw none.
+    pass_width : int
     search_radius : float
         Metres: only old keyframes this close to the new one's estimate are gated (a cap on the
         cost of the covariances; raise it when the drift between closures can be larger).
@@ -198,6 +200,7 @@ class ClosureRules:
     max_degeneracy: float = 10.0
     max_ambiguity: float = 0.9
     max_conflicts: float = 0.05
+    pass_width: int = 3
     search_radius: float = 8.0
     max_gated: int = 8
 
@@ -215,6 +218,7 @@ class ClosureRules:
         check_real(self.max_degeneracy, "max_degeneracy", w, minimum=1.0)
         check_real(self.max_ambiguity, "max_ambiguity", w, minimum=0.0)
         check_real(self.max_conflicts, "max_conflicts", w, minimum=0.0, maximum=1.0)
+        check_int(self.pass_width, "pass_width", w, minimum=0)
         check_real(self.search_radius, "search_radius", w, minimum=0.0)
         check_int(self.max_gated, "max_gated", w, minimum=1)
 
@@ -444,7 +448,7 @@ class RelativeGate:
         return 0.5 * (cov + np.swapaxes(cov, 1, 2))
 
 
-def verify_closure(model_i, points_j, prediction, cov, rules, *, reference_scan=None):
+def verify_closure(model_i, points_j, prediction, cov, rules, *, old_scans=None):
     """Match scan ``j`` to scan ``i`` from the prediction and apply the acceptance rules.
 
     ICP runs from every guess of :func:`starting_guesses` and the match pairing the most points
@@ -491,9 +495,7 @@ def verify_closure(model_i, points_j, prediction, cov, rules, *, reference_scan=
         reason = "degenerate"
     elif ambiguity > rules.max_ambiguity:
         reason = "ambiguous"
-    elif reference_scan is not None and _conflicts(reference_scan, points_j, m.pose) > (
-        rules.max_conflicts
-    ):
+    elif old_scans is not None and _conflicts(old_scans, points_j, m.pose) > rules.max_conflicts:
         reason = "free space"
     elif d2 > _chi2_quantile(rules.confidence, 3):
         reason = "inconsistent"
@@ -502,9 +504,25 @@ def verify_closure(model_i, points_j, prediction, cov, rules, *, reference_scan=
     return m, d2, reason
 
 
-def _conflicts(reference_scan, points_j, pose):
-    log, k = reference_scan
-    return free_space_conflicts(log.ranges[k], log.angles, log.max_range, points_j, pose)
+def _conflicts(old_scans, points_j, z):
+    """The median free-space conflict of scan ``j`` placed by ``z`` against old scans ``n``
+    whose poses ``T_ni`` relative to ``i`` the graph knows (the old pass's own geometry); the
+    median, because a person walking through one old scan is not an alias."""
+    log, near = old_scans
+    return np.median(
+        [
+            free_space_conflicts(
+                log.ranges[k], log.angles, log.max_range, points_j, se2.compose(T_ni, z)
+            )
+            for k, T_ni in near
+        ]
+    )
+
+
+def _old_pass(i, a, rules):
+    """Keyframe ``i`` and its neighbours on the old pass (``rules.pass_width`` each side)."""
+    lo, hi = max(i - rules.pass_width, 0), min(i + rules.pass_width, a - 1)
+    return range(lo, hi + 1)
 
 
 def _outside_basin(cov):
@@ -656,7 +674,12 @@ def build_graph(
         for c in np.nonzero(ok)[0][order]:
             i = near[c]
             m, cd2, reason = verify_closure(
-                models[i], pts[a], pred[c], cov[c], rules, reference_scan=(log, kf[i])
+                models[i],
+                pts[a],
+                pred[c],
+                cov[c],
+                rules,
+                old_scans=(log, [(kf[n], se2.between(x[n], x[i])) for n in _old_pass(i, a, rules)]),
             )
             cand = Candidate(
                 int(kf[i]),

@@ -15,13 +15,14 @@ using a point-to-line metric") alternates
    ``e_u = t2v(u^-1 x) = (R_u^T (t − t_u), θ − θ_u)`` is linear in ``x`` (Jacobian
    ``diag(R_u^T, 1)``), the lecture notes' error of one edge.
 
-The result's information matrix is the Gauss–Newton ``H`` of the scan term with the residual
-variance ``σ̂²`` as the noise of each distance, divided by :data:`INFORMATION_SCALE` — the
-calibration.  The raw ``J^T J / σ̂²`` treats the ~180 distances as independent, which they are not
-(a wall's points share one modelling error, the scanner's bias and the ambiguity of the
-correspondences): on INTEL its NEES against the reference poses is tens of times its expectation 3
-(chapter 10 measures it).  Dividing by the factor measured there makes ``Ω`` honest on average;
-:data:`INFORMATION_SCALE` says which number was chosen and why.
+The Gauss–Newton steps weight each distance by ``1/σ̂²`` (``σ̂`` the residuals' standard
+deviation, with Cauchy weights for outliers): against these raw weights the odometry prior only
+matters where the scans say nothing (a corridor's axis).  The result's information matrix is
+that ``H = J^T J / σ̂²`` divided by :data:`INFORMATION_SCALE` — the calibration.  The raw ``H``
+treats the ~180 distances as independent, which they are not (a wall's points share one
+modelling error, the scanner's bias and the ambiguity of the correspondences): on INTEL its NEES
+``e^T H e`` against the reference poses has median 351 over 752 consecutive keyframe pairs,
+where χ²₃'s median is 2.37 — about 150 times overconfident.  Chapter 10 shows the measurement.
 
 *Degeneracy.*  In a straight corridor the walls constrain the position across the corridor but not
 along it: ICP slides.  :attr:`Match.degeneracy` is the ratio ``λ_max / λ_min`` of the position
@@ -63,10 +64,12 @@ __all__ = [
     "point_to_line_residuals",
 ]
 
-#: The raw ICP information ``J^T J / σ̂²`` is divided by this factor.  Measured on INTEL (chapter
-#: 10, ``frontend.calibrate_information``): consecutive keyframes matched with the front end's
-#: defaults, NEES ``e^T Ω e`` against GMapping's poses, its median over 700 pairs over
-#: ``χ²₃``'s median (2.37); the mean is pulled up by a few pairs where GMapping itself is off.
+#: The raw ICP information ``J^T J / σ̂²`` is divided by this factor: the median NEES of the raw
+#: information on INTEL's consecutive keyframes (scan term alone, no prior; the corridor matches
+#: left out) is 351 against GMapping's poses, and 351 / 2.37 (χ²₃'s median) = 148.  The median,
+#: because a few pairs where GMapping itself is off pull the mean up (mean 749, which would give
+#: 250).  With it the accepted loop closures' NEES has median 2.5 and mean 4.5
+#: (``tests/test_frontend.py``).
 INFORMATION_SCALE = 150.0
 
 
@@ -170,6 +173,9 @@ class Match:
         Unit vector (reference frame) of the least-constrained position direction.
     iterations : int
     converged : bool
+        The step fell below ``tolerance``, or the iterates cycled (nearest-neighbour pairings can
+        alternate between fixed points a fraction of a millimetre apart), with the pairing
+        distance at its floor (``max(4 σ̂, MIN_PAIR_DISTANCE)``).
     """
 
     pose: np.ndarray
@@ -264,6 +270,8 @@ def icp_step(
         Pairs farther apart are not used (metres).
     prior, prior_information : ndarray, shape (3,) and (3, 3), optional
         Odometry prior ``u`` and its information (g2o convention).
+    weight_scale : float
+        The distances are weighted ``1 / (σ̂² weight_scale)`` against the prior (1: raw).
 
     Returns
     -------
@@ -356,6 +364,11 @@ def match(
     max_iterations : int
     tolerance : float
         Converged when the step is below it (metres and radians).
+    information_scale : float
+        The reported information is ``J^T J / (σ̂² information_scale)``
+        (:data:`INFORMATION_SCALE`; 1 for the raw Hessian).
+    weight_scale : float
+        The weight of the scan against the prior in the iterations (see :func:`icp_step`).
 
     Returns
     -------

@@ -69,7 +69,7 @@ HEADING_BIAS = math.radians(-3.9)
 #: Exercise 10.3 runs the front end on the first this many scans of the simulated office.
 SWEEP_SCANS = 320
 #: Degrees: the heading σ of the odometry prior per keyframe step, exercise 10.3's sweep.
-SWEEP_SIGMAS = (0.1, 0.3, 1.0, 10.0)
+SWEEP_SIGMAS = (0.3, 1.0, 3.0)
 #: Metres: a map "holds" when the ATE of its poses against the truth is at most this.
 ATE_BOUND = 0.15
 
