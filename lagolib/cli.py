@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import functools
 import inspect
 import io
@@ -63,7 +62,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import book, certify, datasets, frontend, metrics, se2, topology
+from . import book, certify, datasets, frontend, metrics, scans, se2, topology
 from .errors import (
     DatasetError,
     GraphError,
@@ -996,25 +995,6 @@ def _read_log(name, flag=""):
     raise LagolibError(f"{what}: no such file, nor the name of a laser log: {_log_names()}")
 
 
-def _simulated_odometry(log, fraction, degrees, seed):
-    """``log`` with its odometry replaced by its reference increments plus Gaussian noise.
-
-    As :func:`lagolib.laser_world.simulate_log` draws it (with the same generator calls, so the
-    simulated office's reference and seed give that log's own odometry):
-    ``u_k = (x_k ⊖ x_{k-1}) + ε_k`` in the frame of scan ``k - 1``, ``ε_k = (N(0, σ_xy²),
-    N(0, σ_xy²), N(0, σ_θ²))``, ``σ_xy = fraction · |t_k|``, ``σ_θ = degrees`` per step.
-    """
-    x = log.reference
-    u = np.zeros_like(x)
-    u[1:] = se2.between(x[:-1], x[1:])  # the reference increments, frame of scan k - 1
-    dist = np.hypot(u[1:, 0], u[1:, 1])  # |t_k|
-    z = np.random.default_rng(seed).standard_normal((len(x) - 1, 3))
-    u[1:, :2] += z[:, :2] * (fraction * dist)[:, None]  # σ_xy = fraction of the translation
-    u[1:, 2] += np.radians(degrees) * z[:, 2]  # σ_θ per step
-    u[:, 2] = se2.wrap_angle(u[:, 2])
-    return dataclasses.replace(log, odometry=u)
-
-
 def _odometry_text(args, log):
     """Which odometry the front end (or ``--poses odometry``) uses."""
     if args.simulated_odometry is not None:
@@ -1034,7 +1014,9 @@ def _load_laser(name, args, flag=""):
     label, log = _read_log(name, flag)
     if args.simulated_odometry is not None:
         fraction, degrees = args.simulated_odometry
-        log = _simulated_odometry(log, fraction, degrees, args.seed or 0)
+        log = scans.simulated_odometry(
+            log, translation_sigma=fraction, rotation_sigma=np.radians(degrees), rng=args.seed or 0
+        )
     return label, log
 
 

@@ -447,10 +447,8 @@ def simulated_odometry(log, *, translation_sigma=0.05, rotation_sigma=2 * math.p
         else np.random.default_rng(check_int(rng, "rng", where, minimum=0))
     )
     u = np.zeros_like(log.reference)
-    u[1:] = se2.between(log.reference[:-1], log.reference[1:])
-    n = gen.standard_normal(u.shape)
-    s = translation_sigma * np.hypot(u[:, 0], u[:, 1])
-    u[1:, 0] += s[1:] * n[1:, 0]
-    u[1:, 1] += s[1:] * n[1:, 1]
-    u[1:, 2] = se2.wrap_angle(u[1:, 2] + rotation_sigma * n[1:, 2])
+    u[1:] = se2.between(log.reference[:-1], log.reference[1:])  # frame of scan k - 1
+    n = gen.standard_normal((len(u) - 1, 3))  # the draws of lagolib.laser_world.simulate_log
+    u[1:, :2] += n[:, :2] * (translation_sigma * np.hypot(u[1:, 0], u[1:, 1]))[:, None]
+    u[1:, 2] = se2.wrap_angle(u[1:, 2] + rotation_sigma * n[:, 2])
     return log.with_odometry(u)

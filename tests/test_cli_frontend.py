@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import lagolib
-from lagolib import certify, cli, frontend, laser_world, metrics, se2
+from lagolib import certify, cli, frontend, laser_world, metrics, scans, se2
 from lagolib.occupancy import map_quality, occupancy_grid
 from lagolib.scans import read_carmen
 
@@ -198,12 +198,15 @@ def test_simulated_odometry_is_simulate_logs_noise_on_the_reference():
     exact = laser_world.simulate_log(range_sigma=0.0, odometry_sigma=(0.0, 0.0), rng=0)
     for seed in (0, 7):
         noisy = laser_world.simulate_log(range_sigma=0.0, rng=seed)
-        replaced = cli._simulated_odometry(exact, 0.05, 2.0, seed)
+        replaced = scans.simulated_odometry(exact, rotation_sigma=np.radians(2.0), rng=seed)
         d = se2.between(replaced.odometry, noisy.odometry)  # headings of ±π compare equal
         assert np.abs(d).max() < 1e-12
         np.testing.assert_array_equal(replaced.reference, exact.reference)
         np.testing.assert_array_equal(replaced.ranges, exact.ranges)
-    none = cli._simulated_odometry(exact, 0.0, 0.0, 3)  # no noise: the reference increments
+    # no noise: the reference increments
+    none = scans.simulated_odometry(exact, translation_sigma=0.0, rotation_sigma=0.0, rng=3)
+        exact, translation_sigma=0.0, rotation_sigma=0.0, rng=3
+    )  # no noise: the reference increments
     assert np.abs(se2.between(none.odometry_poses(), exact.reference)).max() < 1e-9
 
 
@@ -214,7 +217,7 @@ def test_frontend_simulated_odometry_replaces_the_real_increments(carmen, capsys
         capsys, "frontend", path, "--simulated-odometry", "0.05", "2", "--seed", "4", "-o", out
     )
     assert rc == 0, err
-    ref = frontend.build_graph(cli._simulated_odometry(log, 0.05, 2.0, 4))
+    ref = frontend.build_graph(scans.simulated_odometry(log, rotation_sigma=np.radians(2.0), rng=4))
     g = lagolib.read(out)
     np.testing.assert_array_equal(g.ids, ref.keyframes)
     np.testing.assert_array_equal(g.poses, ref.graph.poses)
