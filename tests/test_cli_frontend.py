@@ -205,8 +205,6 @@ def test_simulated_odometry_is_simulate_logs_noise_on_the_reference():
         np.testing.assert_array_equal(replaced.ranges, exact.ranges)
     # no noise: the reference increments
     none = scans.simulated_odometry(exact, translation_sigma=0.0, rotation_sigma=0.0, rng=3)
-        exact, translation_sigma=0.0, rotation_sigma=0.0, rng=3
-    )  # no noise: the reference increments
     assert np.abs(se2.between(none.odometry_poses(), exact.reference)).max() < 1e-9
 
 
