@@ -1,7 +1,9 @@
-"""The front end: from a laser log to a pose graph (lecture notes, "Graph-based SLAM").
+"""The front end: from a laser log to a pose graph (lecture notes, "The overall SLAM System").
 
-*"Interplay of front end and back end: graph construction, graph optimization."*  The front end
-builds the graph the rest of lagolib optimizes:
+*"Interplay of front end and back end: graph construction, graph optimization"* (lecture notes,
+"The overall SLAM System"); *"every node in the graph corresponds to a robot position and a
+laser measurement"* ("Graph-based slam in a Nutshell").  The front end builds the graph the rest
+of lagolib optimizes:
 
 1. **keyframes** (:func:`keyframes`): a scan becomes a vertex once odometry says the robot moved
    ``min_translation`` metres or turned ``min_rotation`` radians since the last one;

@@ -1,7 +1,8 @@
 """Occupancy grid maps: log-odds mapping with ray casting (Thrun et al. 2005, ch. 9).
 
-Lecture notes, "Graph-based SLAM": *once we have the graph, we determine the most likely map …
-then we can render a map based on the known poses*.  This module renders it: every cell ``m_i``
+Lecture notes, "Graph-based slam in a Nutshell": *once we have the graph, we determine the most
+likely map … then we can render a map based on the known poses*; Carlone et al. 2011, Fig. 2 is
+such a map of INTEL (chapter 10 reproduces it).  This module renders it: every cell ``m_i``
 of a regular grid holds the log odds ``l_i = log(p_i / (1 - p_i))`` that it is occupied, and each
 scan adds evidence along its beams (Thrun, Burgard, Fox, *Probabilistic Robotics*, 2005 [1]_):
 

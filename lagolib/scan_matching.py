@@ -7,7 +7,7 @@ using a point-to-line metric") alternates
 1. *correspondences*: every point ``p_k`` of scan ``j``, moved by the current guess
    ``x = (t, θ)``, is paired with its nearest point ``q_k`` of scan ``i``, whose *normal* ``n_k``
    comes from a line fitted to ``q_k``'s neighbours (:class:`ScanModel`);
-2. *a Gauss–Newton step* on the point-to-line distances (Censi 2008, eq. 2)::
+2. *a Gauss–Newton step* on the point-to-line distances (Censi 2008, the metric of his Section II)::
 
        r_k(x) = n_k^T (R(θ) p_k + t − q_k),     J_k = [n_k^T, n_k^T R'(θ) p_k]      (1 x 3)
 
@@ -118,6 +118,7 @@ class ScanModel:
         normals = v[:, :, 0]
         usable = (
             (kk >= 2)
+            & (w[:, 1] > 0)  # coincident points have no line
             & (dist[:, -1] <= self.max_spread)
             & (w[:, 0] <= self.max_planarity * np.maximum(w[:, 1], 1e-300))
         )
@@ -192,7 +193,7 @@ class Match:
 
 
 def point_to_line_residuals(model, points, pose, pairs):
-    """Point-to-line distances and their Jacobian (Censi 2008, eq. 2).
+    """Point-to-line distances and their Jacobian (Censi 2008, Section II).
 
     Parameters
     ----------
@@ -215,7 +216,9 @@ def point_to_line_residuals(model, points, pose, pairs):
     c, s = math.cos(pose[2]), math.sin(pose[2])
     Rp = points @ np.array([[c, s], [-s, c]])  # R(θ) p for every row p
     n = model.normals[pairs]
-    r = np.einsum("mi,mi->m", n, Rp + pose[:2] - model.points[pairs])  # Censi (2008), eq. (2)
+    r = np.einsum(
+        "mi,mi->m", n, Rp + pose[:2] - model.points[pairs]
+    )  # Censi (2008): n^T (R p + t - q)
     dRp = np.column_stack([-Rp[:, 1], Rp[:, 0]])  # R'(θ) p = J R(θ) p
     J = np.column_stack([n, np.einsum("mi,mi->m", n, dRp)])
     return r, J
@@ -493,7 +496,7 @@ def _likelihood_field(model, resolution, sigma, margin):
     cells = np.floor((model.points - lo) / resolution).astype(int)
     hit[cells[:, 0], cells[:, 1]] = False
     d = distance_transform_edt(hit) * resolution
-    return lo, np.exp(-0.5 * (d / sigma) ** 2)  # Olson (2009), the lookup table of eq. (5)
+    return lo, np.exp(-0.5 * (d / sigma) ** 2)  # Olson (2009): the lookup table
 
 
 def correlative_search(
@@ -514,7 +517,7 @@ def correlative_search(
     scan matching scores every pose of a grid — ``dx, dy`` ``resolution`` apart within
     ``±window[0]`` metres of the prediction, ``θ`` ``angular_step`` apart within ``±window[1]`` —
     by the mean of the reference scan's likelihood field at the moved points (Olson, "Real-time
-    correlative scan matching", ICRA 2009, eq. 5).  The best pose starts ICP.
+    correlative scan matching", ICRA 2009, Section III).  The best pose starts ICP.
 
     Parameters
     ----------

@@ -337,8 +337,17 @@ def read_carmen(path, *, max_range=None, name=None):
         of beams), or a file without ``FLASER`` lines.
     """
     p = Path(path)
+    if p.is_dir():
+        raise ParseError(p, None, "is a folder; read_carmen needs a Carmen laser log file")
     if not p.is_file():
         raise ParseError(p, None, "no such file (read_carmen needs a Carmen laser log)")
+    try:
+        return _read_carmen(p, max_range, name)
+    except (OSError, EOFError, UnicodeError) as e:  # a corrupt .gz, an unreadable file
+        raise ParseError(p, None, f"cannot be read as a Carmen log ({e})") from None
+
+
+def _read_carmen(p, max_range, name):
     ranges, poses, stamps, odom = [], [], [], []
     last_odom = None  # the last timed ODOM pose since the previous FLASER
     n_beams = None

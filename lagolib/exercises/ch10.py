@@ -75,8 +75,18 @@ ATE_BOUND = 0.15
 
 
 # --------------------------------------------------------------------------- exercise 10.1
-def _icp_variant(model, points, pose, *, weights=True, mad=True, usable=True, rotate=True,
-                 sign=1.0, max_distance=MAX_DISTANCE):
+def _icp_variant(
+    model,
+    points,
+    pose,
+    *,
+    weights=True,
+    mad=True,
+    usable=True,
+    rotate=True,
+    sign=1.0,
+    max_distance=MAX_DISTANCE,
+):
     """One point-to-line ICP step as :func:`lagolib.scan_matching.icp_step` takes it — or with
     one of the usual slips (the keywords), to recognize a wrong answer.
 
@@ -172,8 +182,7 @@ _ICP_SLIPS = (
         dict(usable=False),
         "you paired points with reference points that have no normal (model.usable is False "
         "there: their neighbourhood is not a line).",
-        "keep only the pairs within max_distance whose reference point has "
-        "model.usable[idx] True.",
+        "keep only the pairs within max_distance whose reference point has model.usable[idx] True.",
     ),
 )
 
@@ -401,7 +410,9 @@ def heading_sweep(sigmas=SWEEP_SIGMAS):
             sol = certify.solve(fe.graph)
             g = fe.graph
             chain = g.odometry_guess()
-            out["ate"][k] = metrics.absolute_trajectory_error(sol.poses, fe.reference).translation_rmse
+            out["ate"][k] = metrics.absolute_trajectory_error(
+                sol.poses, fe.reference
+            ).translation_rmse
             out["chain_ate"][k] = metrics.absolute_trajectory_error(
                 chain, fe.reference
             ).translation_rmse
@@ -476,7 +487,9 @@ def check_heading_sweep(smallest_sigma, closures_when_broken):
     if wrong is not None:
         at_ok = int(sw["accepted"][ok][0])
         if closures_when_broken == at_ok:  # an int: @check read it
-            wrong += " That is the count where the map holds; the question is about the row below it."
+            wrong += (
+                " That is the count where the map holds; the question is about the row below it."
+            )
         return verdict(
             ex,
             wrong,
