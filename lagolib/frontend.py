@@ -46,7 +46,7 @@ from . import se2
 from .checks import check_bool, check_int, check_real
 from .errors import OptionError, OptionTypeError
 from .gauss_newton import edge_jacobians, optimize
-from .graph import PoseGraph
+from .graph import PoseGraph, as_graph_poses, vertex_rows
 from .linalg import SparseCholesky
 from .scan_matching import ScanModel, correlative_search, free_space_conflicts, match
 from .scans import LaserLog
@@ -237,10 +237,11 @@ class Candidate:
         ``x_i^-1 x_j`` at the estimate when it was gated.
     gate_d2 : float
         Squared Mahalanobis distance of the predicted distance beyond ``overlap`` (1 dof).
-    measurement : ndarray, shape (3,) or None
-        The match's ``z_ij`` (None when not matched).
+    measurement : ndarray, shape (3,)
+        The match's ``z_ij``.
     information : ndarray, shape (3, 3) or None
-        Its information (g2o convention): the calibrated scan information.
+        Its information (g2o convention): the calibrated scan information; None when ICP did
+        not converge.
     consistency_d2 : float
         ``e^T S^-1 e`` of the match against the prediction (3 dof; nan if not matched).
     inlier_fraction, rms, degeneracy : float
@@ -277,13 +278,16 @@ class FrontEnd:
     candidates : list of Candidate
         Every candidate matched (accepted or not).
     gated : int
-        Candidates the gate admitted (before ``max_candidates``).
+        Candidates the gate admitted, before ``max_candidates`` cut them: more than were
+        matched (``len(candidates)``).
     timings : dict
         Seconds: ``"read"`` excluded; ``"keyframes"``, ``"sequential"``, ``"closures"``,
         ``"optimization"``, ``"total"``.
     reference : ndarray, shape (K, 3)
         The log's reference poses of the keyframes.
     reference_kind : str
+    settings : dict
+        The options :func:`build_graph` ran with.
     """
 
     graph: PoseGraph
@@ -373,13 +377,24 @@ def gate_candidates(graph, j, candidates, rules, *, poses=None, covariances=None
     cov : ndarray, shape (c, 3, 3)
         Covariance of the prediction (as the error ``e_ij`` of an edge ``i → j``).
     """
-    x = graph.poses if poses is None else poses
-    pos = {int(v): k for k, v in enumerate(graph.ids)}
-    ki = np.array([pos[int(i)] for i in candidates])
-    kj = pos[int(j)]
+    where = "gate_candidates"
+    if not isinstance(graph, PoseGraph):
+        raise OptionTypeError(f"{where}: graph must be a PoseGraph; got {type(graph).__name__}")
+    if not isinstance(rules, ClosureRules):
+        raise OptionTypeError(f"{where}: rules must be a ClosureRules; got {type(rules).__name__}")
+    x = as_graph_poses(graph, poses)
+    (kj,) = vertex_rows(graph, [j], f"{where}: j (the new keyframe)")
+    ki = vertex_rows(graph, candidates, f"{where}: candidates")
+    if len(ki) == 0:
+        z = np.zeros((0, 3))
+        return np.zeros(0), z, np.zeros((0, 3, 3))
+    if np.any(ki == kj):
+        raise OptionError(f"{where}: the candidates include j itself (vertex {graph.ids[kj]})")
     pred = se2.between(x[ki], x[kj])
     if covariances is None:
-        cov_i = relative_covariances(graph, j, list(candidates), poses=x, method="solves")
+        cov_i = relative_covariances(
+            graph, graph.ids[kj], graph.ids[ki].tolist(), poses=x, method="solves"
+        )
         _, A, _ = edge_jacobians(x[ki], np.broadcast_to(x[kj], x[ki].shape), pred)
         cov = A @ cov_i @ np.swapaxes(A, 1, 2)  # Σ_i|j carried into the error e_ij
     else:
@@ -453,12 +468,42 @@ class RelativeGate:
 def verify_closure(model_i, points_j, prediction, cov, rules, *, old_scans=None):
     """Match scan ``j`` to scan ``i`` from the prediction and apply the acceptance rules.
 
-    ICP runs from every guess of :func:`starting_guesses` and the match pairing the most points
-    is kept.  Returns the match, its consistency ``d2`` and the first rule it fails
-    (``"accepted"`` if none): ``"not converged"``, ``"inliers"``, ``"residual"``,
-    ``"degenerate"`` (corridor), ``"inconsistent"`` (the χ²₃ test of
-    :func:`lagolib.uncertainty.loop_closure_test`: ``e = t2v(z^-1 ẑ)``,
-    ``S = Σ_pred + Ω_z^-1``).
+    ICP starts at the prediction, or — when the prediction is too uncertain for ICP's basin
+    (σ > 0.1 m or > 2°) — at the best pose of a correlative search over the prediction's
+    2.5σ window (:func:`lagolib.scan_matching.correlative_search`).  The match is then judged
+    by ``rules``, in this order; the first rule it fails is the verdict:
+
+    ``"not converged"``; ``"inliers"`` (fraction of ``j``'s points paired below
+    ``min_inliers``); ``"residual"`` (rms above ``max_rms``); ``"degenerate"`` (a corridor:
+    ``Match.degeneracy`` above ``max_degeneracy``); ``"ambiguous"`` (the window search found
+    another placement ≥ 0.5 m away scoring within ``max_ambiguity`` of the best);
+    ``"free space"`` (with ``old_scans``: the median over the old pass of the fraction of ``j``'s
+    returns placed where an old scan saw through, above ``max_conflicts``); ``"inconsistent"``
+    (the χ²₃ test of :func:`lagolib.uncertainty.loop_closure_test` against the prediction:
+    ``e = t2v(z^-1 ẑ)``, ``S = Σ_pred + Ω_z^-1``); otherwise ``"accepted"``.
+
+    Parameters
+    ----------
+    model_i : ScanModel
+        The old scan ``i``.
+    points_j : ndarray, shape (m, 2)
+        The new scan ``j``, its own sensor frame.
+    prediction : ndarray, shape (3,)
+        ``ẑ = x_i^-1 x_j`` from the graph.
+    cov : ndarray, shape (3, 3)
+        Its covariance (:func:`gate_candidates`).
+    rules : ClosureRules
+    old_scans : (LaserLog, sequence of (int, ndarray)), optional
+        The log and, for scan ``i`` and its neighbours ``n`` on the old pass, ``(scan index of n,
+        T_ni)`` with ``T_ni`` the pose of ``i`` in the frame of ``n`` (from the graph; ``T_ii = 0``).
+        Without it the free-space rule is not applied.
+
+    Returns
+    -------
+    match : lagolib.scan_matching.Match
+    d2 : float
+        The consistency test's ``e^T S^-1 e``.
+    reason : str
     """
     ambiguity = 0.0
     sd = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2]).max()), 0.0))
@@ -689,7 +734,7 @@ def build_graph(
                 pred[c],
                 float(d2[c]),
                 m.pose,
-                m.scan_information,
+                m.scan_information if m.converged else None,
                 cd2,
                 m.inlier_fraction,
                 m.rms,

@@ -29,10 +29,12 @@ import scipy.sparse as sp
 import sympy
 from scipy.sparse.linalg import spsolve
 from test_exercises_ch03 import gate_world_data, loop_data
+from test_exercises_ch10 import gate_world_data as ch10_gate_world
+from test_exercises_ch10 import step_ok
 
 import lagolib
 from lagolib import certify, se2, topology
-from lagolib.exercises import CHAPTERS, ch03, ch07, ch08, ch09
+from lagolib.exercises import CHAPTERS, ch03, ch07, ch08, ch09, ch10
 from lagolib.exercises._coerce import (
     Bool,
     Choice,
@@ -285,6 +287,23 @@ def _gate():
     )
 
 
+def _gate_prediction():
+    chain, x = ch10_gate_world()
+    return dict(
+        admitted=(True, True, False, False),
+        graph=chain,
+        j=79,
+        candidates=[2, 3, 4, 44],
+        rules=lagolib.frontend.ClosureRules(overlap=1.6),
+        poses=x,
+    )
+
+
+def _heading_sweep():
+    sweep = ch10.heading_sweep()
+    return dict(smallest_sigma=1.0, closures_when_broken=int(sweep["accepted"][0]))
+
+
 def _certificate_reading():
     point, bound, p, P, Q = _certificates()
     return dict(certified_point=point, lower_bound_P=bound, problem=p, P=P, Q=Q)
@@ -344,6 +363,9 @@ REFERENCE = {
     "ch09.check_multipliers": lambda: dict(multipliers=_multipliers),
     "ch09.check_certificate_reading": _certificate_reading,
     "ch09.check_noise_sweep": _noise_sweep,
+    "ch10.check_icp_step": lambda: dict(icp_step=step_ok),
+    "ch10.check_gate_prediction": _gate_prediction,
+    "ch10.check_heading_sweep": _heading_sweep,
 }
 
 

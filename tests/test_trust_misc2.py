@@ -111,6 +111,8 @@ def _valid_arguments(fn, g, tmp_path):
         "path": tmp_path / "out.g2o",
         "where": "check_graph",
         "poses": g.poses,
+        "candidates": [0],  # frontend.gate_candidates (j = 1)
+        "rules": lagolib.frontend.ClosureRules(),
     }
     out = {}
     for p in inspect.signature(fn).parameters.values():

@@ -88,7 +88,6 @@ NOT_IMPLEMENTED: dict[tuple[str, str], str] = {
         "the expansion of the cost in the proof of Theorem 1; chapter 6 checks the theorem "
         "numerically instead"
     ),
-    ("carlone", "Fig. 2"): "the INTEL map with its occupancy grid: lagolib has no laser scans",
     ("rizzini", "eq. 8"): (
         "the set of a pose's incoming constraints; `closed_form` assembles the gradient per "
         "constraint instead, with sparse matrices"
@@ -102,18 +101,18 @@ NOT_IMPLEMENTED: dict[tuple[str, str], str] = {
     ("rizzini", "eq. 49"): "the §IV-A example's L (see eq. 47)",
     ("rizzini", "Fig. 1"): "a drawing of an example network",
     ("notes", "Idea of Graph-Based SLAM"): "motivation, nothing to compute",
-    ("notes", "Graph-based slam in a Nutshell"): "motivation, nothing to compute",
-    ("notes", "The overall SLAM System"): (
-        "front end and back end: lagolib is a back end and starts from a given graph"
-    ),
 }
 
 # the notes number nothing, and the chapters teach their slides without quoting the titles: the
 # chapter section (a heading's text, matched as a substring) that teaches each slide
 NOTES_TAUGHT: dict[str, list[tuple[str, str]]] = {
     "Idea of Graph-Based SLAM": [("01", "Chapter 1")],
-    "Graph-based slam in a Nutshell": [("01", "Chapter 1")],
-    "The overall SLAM System": [("01", "Chapter 1")],
+    "Graph-based slam in a Nutshell": [("01", "Chapter 1"), ("10", "The map")],
+    "The overall SLAM System": [
+        ("01", "Chapter 1"),
+        ("10", "the front end run once"),
+        ("10", "The back end"),
+    ],
     "The Graph": [("01", "Odometric edges and loop closures")],
     "Transformations": [("01", "A pose and its homogeneous matrix"), ("01", "Compounding")],
     "The Edge Information matrices": [("01", "A relative measurement and its error")],

@@ -148,7 +148,12 @@ def _icp_cases():
         p_i, _ = scan_points(ranges[0], angles, max_range=30.0)
         p_j, _ = scan_points(ranges[1], angles, max_range=30.0)
         guess = se2.compose(np.array(step), np.array(off))
-        cases.append((scan_matching.ScanModel(p_i), p_j, guess))
+        model = scan_matching.ScanModel(p_i)
+        # read-only: a student's function that writes into its arguments cannot change the
+        # cached cases (the check hands over copies of the points and the guess)
+        for a in (model.points, model.normals, model.usable, p_j, guess):
+            a.setflags(write=False)
+        cases.append((model, p_j, guess))
     return tuple(cases)
 
 
@@ -246,6 +251,8 @@ def check_icp_step(icp_step):
             f"{MAX_DISTANCE} m; r = n·(R p + t − q), J = [n_x, n_y, n·R'(θ)p]; σ̂ = 1.4826 median|r|; "
             "Cauchy weights; Δx = −(JᵀWJ)⁻¹JᵀWr; new pose = pose + Δx, θ wrapped."
         )
+        if got.shape != expected.shape:
+            return verdict(ex, f"{where}: {problem}", hint=hint)
         for slip, sentence, slip_hint in _ICP_SLIPS:
             wrong = _icp_variant(model, points, guess, **slip)
             if not np.allclose(wrong, expected, rtol=1e-7, atol=1e-9) and matches(got, wrong, 1e-7):
