@@ -25,7 +25,15 @@ import numpy as np
 
 from .errors import OptionError, OptionTypeError
 
-__all__ = ["check_int", "check_real", "check_choice", "check_bool", "check_callback", "real_array"]
+__all__ = [
+    "check_int",
+    "check_real",
+    "check_choice",
+    "check_bool",
+    "check_callback",
+    "check_rng",
+    "real_array",
+]
 
 
 def check_int(value, name, where, *, minimum=None, maximum=None):
@@ -107,3 +115,16 @@ def check_callback(value, name, where, arguments=("iteration", "poses")):
     except ValueError:  # no signature to inspect (some builtins): accept it
         pass
     return value
+
+
+def check_rng(rng, where):
+    """A Generator from a non-negative int seed or a Generator; ``None`` (fresh OS entropy) is
+    refused: every simulation lagolib makes is reproducible."""
+    if isinstance(rng, np.random.Generator):
+        return rng
+    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, numbers.Integral):
+        raise OptionTypeError(
+            f"{where}: rng must be a non-negative integer seed or a numpy.random.Generator; "
+            f"got {rng!r} ({type(rng).__name__})"
+        )
+    return np.random.default_rng(check_int(rng, "rng", where, minimum=0))

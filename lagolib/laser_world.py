@@ -57,13 +57,12 @@ Examples
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import se2
-from .checks import check_bool, check_int, check_real, real_array
+from .checks import check_bool, check_int, check_real, check_rng, real_array
 from .errors import OptionError, OptionTypeError
 from .scans import LaserLog, beam_angles
 
@@ -521,18 +520,6 @@ def trajectory(world=None, *, step=0.3, turn_radius=1.2):
 _ODOMETRY_SIGMA = (0.05, math.radians(2.0))
 
 
-def _rng(rng, where):
-    """A Generator from a non-negative int seed or a Generator (None is refused: reproducible)."""
-    if isinstance(rng, np.random.Generator):
-        return rng
-    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, numbers.Integral):
-        raise OptionTypeError(
-            f"{where}: rng must be a non-negative integer seed or a numpy.random.Generator; "
-            f"got {rng!r} ({type(rng).__name__})"
-        )
-    return np.random.default_rng(check_int(rng, "rng", where, minimum=0))
-
-
 def simulate_log(
     world=None,
     *,
@@ -625,7 +612,7 @@ def simulate_log(
     frac = check_real(float(sig[0]), "odometry_sigma[0]", where, minimum=0.0)
     sigma_theta = check_real(float(sig[1]), "odometry_sigma[1]", where, minimum=0.0)
     heading_bias = check_real(heading_bias, "heading_bias", where)
-    gen = _rng(rng, where)
+    gen = check_rng(rng, where)
 
     k = len(x)
     angles = beam_angles(n_beams, fov)

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from . import se2
-from .checks import check_int, check_real
+from .checks import check_int, check_real, check_rng
 from .errors import OptionError, OptionTypeError, ParseError
 
 __all__ = [
@@ -446,15 +446,7 @@ def simulated_odometry(log, *, translation_sigma=0.05, rotation_sigma=2 * math.p
         raise OptionTypeError(f"{where}: log must be a LaserLog; got {type(log).__name__}")
     translation_sigma = check_real(translation_sigma, "translation_sigma", where, minimum=0.0)
     rotation_sigma = check_real(rotation_sigma, "rotation_sigma", where, minimum=0.0)
-    if isinstance(rng, (bool, np.bool_)) or rng is None:
-        raise OptionTypeError(
-            f"{where}: rng must be a seed (int) or a numpy Generator; got {rng!r}"
-        )
-    gen = (
-        rng
-        if isinstance(rng, np.random.Generator)
-        else np.random.default_rng(check_int(rng, "rng", where, minimum=0))
-    )
+    gen = check_rng(rng, where)
     u = np.zeros_like(log.reference)
     u[1:] = se2.between(log.reference[:-1], log.reference[1:])  # frame of scan k - 1
     n = gen.standard_normal((len(u) - 1, 3))  # the draws of lagolib.laser_world.simulate_log

@@ -21,14 +21,13 @@ from __future__ import annotations
 
 import itertools
 import math
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import se2
-from .checks import check_bool, check_choice, check_int, check_real, real_array
-from .errors import GraphError, OptionError, OptionTypeError
+from .checks import check_bool, check_choice, check_int, check_real, check_rng, real_array
+from .errors import GraphError, OptionError
 from .graph import PoseGraph
 
 __all__ = ["Simulation", "measure", "loop_world", "manhattan_world", "grid_world"]
@@ -48,21 +47,6 @@ class Simulation:
 
     graph: PoseGraph
     truth: np.ndarray
-
-
-def _rng(rng, where):
-    """A Generator from ``rng``: a non-negative int seed or a ``numpy.random.Generator``.
-
-    ``None`` (fresh OS entropy) is refused: every simulated world must be reproducible.
-    """
-    if isinstance(rng, np.random.Generator):
-        return rng
-    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, numbers.Integral):
-        raise OptionTypeError(
-            f"{where}: rng must be a non-negative integer seed or a numpy.random.Generator; "
-            f"got {rng!r} ({type(rng).__name__})"
-        )
-    return np.random.default_rng(check_int(rng, "rng", where, minimum=0))
 
 
 def _sigmas(value, name, where, m):
@@ -117,7 +101,7 @@ def measure(
     Simulation
     """
     where = "measure"
-    rng = _rng(rng, where)
+    rng = check_rng(rng, where)
     noise = check_choice(noise, "noise", where, ("fixed", "proportional"))
     floor = check_real(floor, "floor", where, minimum=0.0, strict=True)
     noiseless = check_bool(noiseless, "noiseless", where)
@@ -202,7 +186,7 @@ def loop_world(
         ``laps * poses_per_lap`` poses.
     """
     where = "loop_world"
-    rng = _rng(rng, where)
+    rng = check_rng(rng, where)
     laps = check_int(laps, "laps", where, minimum=1)
     poses_per_lap = check_int(poses_per_lap, "poses_per_lap", where, minimum=2)
     shape = check_choice(shape, "shape", where, ("square", "circle"))
@@ -414,7 +398,7 @@ def manhattan_world(
     (1.76–1.88 for ``rng=0`` from 1e3 to 1e6 poses).
     """
     where = "manhattan_world"
-    rng = _rng(rng, where)
+    rng = check_rng(rng, where)
     n_poses = check_int(n_poses, "n_poses", where, minimum=2)
     extent = check_int(extent, "extent", where, minimum=2)
     step = check_real(step, "step", where, minimum=0.0, strict=True)
@@ -483,7 +467,7 @@ def grid_world(
         ``rows * cols`` poses.
     """
     where = "grid_world"
-    rng = _rng(rng, where)
+    rng = check_rng(rng, where)
     rows = check_int(rows, "rows", where, minimum=1)
     cols = check_int(cols, "cols", where, minimum=1)
     if rows * cols < 2:
