@@ -48,7 +48,13 @@ from .errors import OptionError, OptionTypeError
 from .gauss_newton import edge_jacobians, optimize
 from .graph import PoseGraph, as_graph_poses, vertex_rows
 from .linalg import SparseCholesky
-from .scan_matching import ScanModel, correlative_search, free_space_conflicts, match
+from .scan_matching import (
+    INFORMATION_SCALE,
+    ScanModel,
+    correlative_search,
+    free_space_conflicts,
+    match,
+)
 from .scans import LaserLog
 from .uncertainty import information_matrix, relative_covariances
 
@@ -465,7 +471,16 @@ class RelativeGate:
         return 0.5 * (cov + np.swapaxes(cov, 1, 2))
 
 
-def verify_closure(model_i, points_j, prediction, cov, rules, *, old_scans=None):
+def verify_closure(
+    model_i,
+    points_j,
+    prediction,
+    cov,
+    rules,
+    *,
+    old_scans=None,
+    information_scale=INFORMATION_SCALE,
+):
     """Match scan ``j`` to scan ``i`` from the prediction and apply the acceptance rules.
 
     ICP starts at the prediction, or — when the prediction is too uncertain for ICP's basin
@@ -497,6 +512,9 @@ def verify_closure(model_i, points_j, prediction, cov, rules, *, old_scans=None)
         The log and, for scan ``i`` and its neighbours ``n`` on the old pass, ``(scan index of n,
         T_ni)`` with ``T_ni`` the pose of ``i`` in the frame of ``n`` (from the graph; ``T_ii = 0``).
         Without it the free-space rule is not applied.
+    information_scale : float
+        The calibration of the match's information
+        (:data:`lagolib.scan_matching.INFORMATION_SCALE`, measured on INTEL).
 
     Returns
     -------
@@ -523,7 +541,7 @@ def verify_closure(model_i, points_j, prediction, cov, rules, *, old_scans=None)
             max_points=60,
         )
         ambiguity, start = corr.ambiguity, corr.pose
-    best = match(model_i, points_j, start)
+    best = match(model_i, points_j, start, information_scale=information_scale)
     m = best
     info = m.scan_information
     e = se2.between(m.pose, prediction)
@@ -607,6 +625,7 @@ def build_graph(
     max_range=20.0,
     rules=None,
     incremental=True,
+    information_scale=INFORMATION_SCALE,
     progress=None,
 ):
     """The front end: keyframes, sequential matches, gated and verified loop closures.
@@ -621,6 +640,11 @@ def build_graph(
     max_range : float
         Returns farther than this (metres) are not matched (sparse, noisy far walls).
     rules : ClosureRules, optional
+    information_scale : float
+        Divides the raw ICP information ``J^T J / σ̂²`` of every match
+        (:data:`lagolib.scan_matching.INFORMATION_SCALE`: measured on INTEL's real scans; a
+        calibration belongs to a sensor and its environment — a simulated scanner with
+        independent Gaussian ranges needs far less).
     incremental : bool
         True: closures found while walking the keyframes, Gauss–Newton after each accepted one.
         False (batch): every candidate gated against the sequential chain, one optimization
@@ -638,6 +662,9 @@ def build_graph(
     if not isinstance(rules, ClosureRules):
         raise OptionTypeError(f"{where}: rules must be a ClosureRules; got {type(rules).__name__}")
     incremental = check_bool(incremental, "incremental", where)
+    information_scale = check_real(
+        information_scale, "information_scale", where, minimum=0.0, strict=True
+    )
     max_range = check_real(max_range, "max_range", where, minimum=0.0, strict=True)
     odometry_information(
         np.zeros(3), translation_sigma=translation_sigma, rotation_sigma=rotation_sigma
@@ -666,7 +693,13 @@ def build_graph(
         omega_u = odometry_information(
             u, translation_sigma=translation_sigma, rotation_sigma=rotation_sigma
         )
-        m = match(models[a - 1], pts[a], u, prior_information=omega_u)
+        m = match(
+            models[a - 1],
+            pts[a],
+            u,
+            prior_information=omega_u,
+            information_scale=information_scale,
+        )
         z = m.pose
         if m.degeneracy > rules.max_degeneracy:
             # a corridor: along it the scans say nothing (their few far points would decide);
@@ -727,6 +760,7 @@ def build_graph(
                 cov[c],
                 rules,
                 old_scans=(log, [(kf[n], se2.between(x[n], x[i])) for n in _old_pass(i, a, rules)]),
+                information_scale=information_scale,
             )
             cand = Candidate(
                 int(kf[i]),
@@ -765,6 +799,7 @@ def build_graph(
         max_range=max_range,
         rules=rules,
         incremental=incremental,
+        information_scale=information_scale,
     )
     return FrontEnd(
         graph, kf, candidates, gated, timings, log.reference[kf], log.reference_kind, settings
