@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.special import gammaincinv
@@ -46,7 +46,8 @@ from . import se2
 from .checks import check_bool, check_int, check_real
 from .errors import OptionError, OptionTypeError
 from .gauss_newton import edge_jacobians, optimize
-from .graph import PoseGraph, as_graph_poses, vertex_rows
+from .graph import PoseGraph, as_graph_poses, chi2, vertex_rows
+from .lago import lago
 from .linalg import SparseCholesky
 from .scan_matching import (
     INFORMATION_SCALE,
@@ -647,8 +648,10 @@ def build_graph(
         independent Gaussian ranges needs far less).
     incremental : bool
         True: closures found while walking the keyframes, Gauss–Newton after each accepted one.
-        False (batch): every candidate gated against the sequential chain, one optimization
-        at the end is left to the caller.
+        False (batch): every candidate gated against the sequential chain (no re-optimization
+        in between); at the end LAGO and Gauss–Newton, and closures whose ``e^T Ω e`` at the
+        optimum exceeds χ²₃'s :data:`PRUNE_CONFIDENCE` quantile are pruned one at a time, the
+        worst first (their verdict becomes ``"pruned"``).
     progress : callable, optional
         ``progress(stage, done, total)`` with ``stage`` in ``("sequential", "closures")``.
 
@@ -778,7 +781,7 @@ def build_graph(
             )
             candidates.append(cand)
             if cand.accepted:
-                closures.append((i, a, m.pose, m.scan_information))
+                closures.append((i, a, m.pose, m.scan_information, len(candidates) - 1))
                 last_closure = travel[a]
                 if incremental:  # re-optimize: the next predictions use the corrected poses
                     to = time.perf_counter()
@@ -787,10 +790,14 @@ def build_graph(
                     gate.reset()
                     t_opt += time.perf_counter() - to
                 break  # one closure per keyframe: the most plausible candidate that passed
+    if not incremental and closures:  # batch: optimize once, then prune what does not fit
+        to = time.perf_counter()
+        x, closures = _prune(seq, z_seq, info_seq, closures, kf, chain_x, candidates)
+        t_opt += time.perf_counter() - to
     timings["closures"] = time.perf_counter() - t - t_opt
     timings["optimization"] = t_opt
     timings["total"] = time.perf_counter() - t0
-    graph = _graph(x if incremental else chain_x, seq, z_seq, info_seq, closures, kf)
+    graph = _graph(x if incremental or closures else chain_x, seq, z_seq, info_seq, closures, kf)
     settings = dict(
         min_translation=min_translation,
         min_rotation=min_rotation,
@@ -804,6 +811,29 @@ def build_graph(
     return FrontEnd(
         graph, kf, candidates, gated, timings, log.reference[kf], log.reference_kind, settings
     )
+
+
+#: Batch front end: a closure whose χ² at the optimum exceeds this quantile of χ²₃ is pruned.
+PRUNE_CONFIDENCE = 0.999
+
+
+def _prune(seq, z_seq, info_seq, closures, kf, x0, candidates):
+    """The batch front end's a-posteriori check: optimize (LAGO, then Gauss–Newton), and while
+    the worst closure's ``e^T Ω e`` at the optimum exceeds χ²₃'s :data:`PRUNE_CONFIDENCE`
+    quantile, drop it (its candidate becomes ``"pruned"``) and optimize again."""
+    threshold = _chi2_quantile(PRUNE_CONFIDENCE, 3)
+    closures = list(closures)
+    x = x0
+    while closures:
+        g = _graph(x0, seq, z_seq, info_seq, closures, kf)
+        x = np.array(optimize(g, lago(g).poses, max_iterations=50).poses)
+        per_edge = chi2(g, x, per_edge=True)[len(seq) :]
+        worst = int(np.argmax(per_edge))
+        if per_edge[worst] <= threshold:
+            break
+        k = closures.pop(worst)[4]
+        candidates[k] = replace(candidates[k], accepted=False, reason="pruned")
+    return x, closures
 
 
 def _graph(x, seq, z_seq, info_seq, closures, kf):
