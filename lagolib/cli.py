@@ -904,7 +904,7 @@ _FE = {
 _SIM_SIGMA = inspect.signature(simulate_log).parameters["odometry_sigma"].default
 #: Why a matched loop-closure candidate was rejected (:func:`lagolib.frontend.verify_closure`),
 #: in the order its rules are tested.
-_REJECTIONS = ("not converged", "inliers", "residual", "degenerate", "ambiguous", "inconsistent")
+_REJECTIONS = frontend.VERDICTS[1:]  # every rejection, in the order the rules apply
 #: ``(option, dest)`` of the options that set the front end (``map`` checks they apply).
 _FRONTEND_OPTIONS = (
     ("--min-translation", "min_translation"),

@@ -61,6 +61,7 @@ from .uncertainty import information_matrix, relative_covariances
 
 __all__ = [
     "DEGREE",
+    "VERDICTS",
     "keyframes",
     "odometry_information",
     "RelativeGate",
@@ -73,6 +74,20 @@ __all__ = [
     "wrong_closures",
 ]
 
+
+#: The verdicts a candidate can get, in the order the rules are applied (:func:`verify_closure`;
+#: "pruned" only in the batch front end).
+VERDICTS = (
+    "accepted",
+    "not converged",
+    "inliers",
+    "residual",
+    "degenerate",
+    "ambiguous",
+    "free space",
+    "inconsistent",
+    "pruned",
+)
 
 #: One degree in radians (the defaults below are written in degrees).
 DEGREE = math.pi / 180
