@@ -63,7 +63,8 @@ frontend
 occupancy
     Log-odds occupancy grids (Thrun et al. 2005, ch. 9) and their map quality.
 cli
-    The ``lagolib`` command: ``info``, ``solve``, ``plot``, ``datasets``, ``book``.
+    The ``lagolib`` command: ``info``, ``solve``, ``certify``, ``plot``, ``frontend``, ``map``,
+    ``datasets``, ``book``.
 uncertainty
     Marginal and relative covariances from the sparse ``H``, loop-closure gating.
 symbolic
