@@ -62,6 +62,11 @@ __all__ = [
     "match",
     "icp_step",
     "point_to_line_residuals",
+    "Correlation",
+    "correlative_search",
+    "free_space_conflicts",
+    "CAUCHY_C",
+    "MIN_PAIR_DISTANCE",
 ]
 
 #: The raw ICP information ``J^T J / σ̂²`` is divided by this factor: the median NEES of the raw
