@@ -67,6 +67,7 @@ __all__ = [
     "free_space_conflicts",
     "CAUCHY_C",
     "MIN_PAIR_DISTANCE",
+    "MAX_SEARCH_POSES",
 ]
 
 #: The raw ICP information ``J^T J / σ̂²`` is divided by this factor: the median NEES of the raw
@@ -243,6 +244,9 @@ _DEGREE = math.pi / 180
 
 #: Metres: the pairing distance is never tightened below this.
 MIN_PAIR_DISTANCE = 0.1
+
+#: :func:`correlative_search` refuses windows of more poses than this (memory and time).
+MAX_SEARCH_POSES = 20_000_000
 
 #: Cauchy's constant: 95 % efficiency at the normal distribution.
 CAUCHY_C = 2.3849
@@ -547,12 +551,36 @@ def correlative_search(
     -------
     Correlation
     """
-    p = _points(points, "correlative_search: points")
-    z = np.asarray(prediction, dtype=float)
-    sigma = resolution if sigma is None else sigma
+    where = "correlative_search"
+    if not isinstance(model, ScanModel):
+        model = ScanModel(model)
+    p = _points(points, f"{where}: points")
+    z = np.array(prediction, dtype=float)
+    if z.shape != (3,) or not np.all(np.isfinite(z)):
+        raise OptionError(
+            f"{where}: prediction must be a finite pose (x, y, theta); got {prediction!r}"
+        )
+    try:
+        half, ang = (float(w) for w in window)
+    except (TypeError, ValueError):
+        raise OptionError(f"{where}: window must be (metres, radians); got {window!r}") from None
+    check_real(half, "window[0]", where, minimum=0.0, maximum=100.0)
+    check_real(ang, "window[1]", where, minimum=0.0, maximum=math.pi)
+    resolution = check_real(resolution, "resolution", where, minimum=1e-3, strict=True)
+    angular_step = check_real(angular_step, "angular_step", where, minimum=1e-4, strict=True)
+    max_points = check_int(max_points, "max_points", where, minimum=3)
+    separation = check_real(separation, "separation", where, minimum=0.0)
+    sigma = (
+        resolution if sigma is None else check_real(sigma, "sigma", where, minimum=0, strict=True)
+    )
     if len(p) > max_points:
         p = p[np.linspace(0, len(p) - 1, max_points).astype(int)]
-    half, ang = float(window[0]), float(window[1])
+    n_poses = (2 * int(round(half / resolution)) + 1) ** 2 * (2 * int(ang / angular_step) + 1)
+    if n_poses > MAX_SEARCH_POSES:
+        raise OptionError(
+            f"{where}: the window holds {n_poses:.3g} poses (more than {MAX_SEARCH_POSES:.0e}); "
+            "narrow the window or coarsen resolution / angular_step"
+        )
     key = (resolution, sigma, half)
     cache = model.__dict__.setdefault("_fields", {})
     if key not in cache:
@@ -604,15 +632,24 @@ def free_space_conflicts(ranges_i, angles, max_range, points_j, pose, *, margin=
     -------
     float
     """
+    where = "free_space_conflicts"
+    r_i = np.asarray(ranges_i, dtype=float)
+    a = np.asarray(angles, dtype=float)
+    if r_i.ndim != 1 or a.shape != r_i.shape or len(a) < 2:
+        raise OptionError(f"{where}: ranges_i and angles must be 1-D of one length (>= 2)")
+    pts = _points(points_j, f"{where}: points_j")
+    pose = np.asarray(pose, dtype=float)
+    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+        raise OptionError(f"{where}: pose must be a finite (x, y, theta)")
     c, s = math.cos(pose[2]), math.sin(pose[2])
-    q = np.asarray(points_j, float) @ np.array([[c, s], [-s, c]]) + np.asarray(pose[:2], float)
+    q = pts @ np.array([[c, s], [-s, c]]) + pose[:2]
     rho = np.hypot(q[:, 0], q[:, 1])
     phi = np.arctan2(q[:, 1], q[:, 0])
-    step = (angles[-1] - angles[0]) / (len(angles) - 1)
-    beam = np.rint((phi - angles[0]) / step).astype(int)
-    inside = (beam >= 0) & (beam < len(angles))
+    step = (a[-1] - a[0]) / (len(a) - 1)
+    beam = np.rint((phi - a[0]) / step).astype(int)
+    inside = (beam >= 0) & (beam < len(a))
     if not inside.any():
         return 0.0
-    r = np.asarray(ranges_i, float)[beam[inside]]
+    r = r_i[beam[inside]]
     seen = np.where(np.isfinite(r) & (r > 0), np.minimum(r, max_range), 0.0)
     return float(np.mean(rho[inside] < seen - margin))

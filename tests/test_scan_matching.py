@@ -159,5 +159,11 @@ def test_bad_input():
         match(model, _room(), [0, 0])
     with pytest.raises(OptionError, match="prior_information must be positive semidefinite"):
         match(model, _room(), np.zeros(3), prior_information=-np.eye(3))
+    with pytest.raises(OptionError, match="correlative_search: the window holds"):
+        correlative_search(model, _room(), np.zeros(3), window=(50.0, 3.0), resolution=0.01)
+    with pytest.raises(OptionError, match="correlative_search: resolution"):
+        correlative_search(model, _room(), np.zeros(3), resolution=0)
+    with pytest.raises(OptionError, match="free_space_conflicts: ranges_i and angles"):
+        free_space_conflicts([1.0, 2.0], [0.0, 1.0, 2.0], 30.0, _room(), np.zeros(3))
     with pytest.raises(OptionError, match="max_distance"):
         match(model, _room(), np.zeros(3), max_distance=0)
