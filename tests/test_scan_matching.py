@@ -11,6 +11,7 @@ from lagolib.scan_matching import (
     INFORMATION_SCALE,
     ScanModel,
     correlative_search,
+    free_space_conflicts,
     icp_step,
     match,
     point_to_line_residuals,
