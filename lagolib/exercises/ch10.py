@@ -63,8 +63,10 @@ __all__ = [
 MAX_DISTANCE = 0.5
 #: The names of exercise 10.2's four candidates, in the order of its answer.
 LABELS = ("A", "B", "C", "D")
-#: Radians per metre driven: the simulated odometry's heading bias in exercise 10.3 (INTEL's real
-#: odometry turns about −3.9° per metre).
+#: Radians per metre driven: the simulated odometry's heading bias in exercise 10.3 — the "about
+#: −3.9°/m" that the laser data's notes (``SOURCES.md``) quote for INTEL's real odometry.  Chapter
+#: 10's own estimators give −3.3 (summed heading error / distance driven) and −3.6 (least-squares
+#: slope per increment) on INTEL; the exercise keeps the quoted, slightly stronger value.
 HEADING_BIAS = math.radians(-3.9)
 #: Exercise 10.3 runs the front end on the first this many scans of the simulated office.
 SWEEP_SCANS = 320
@@ -162,8 +164,8 @@ _ICP_SLIPS = (
         dict(weights=False),
         "your step has no Cauchy weights: every pair counts fully, so the pairs that landed on "
         "the wrong wall pull as hard as the good ones.",
-        "weight each pair by w_k = 1 / (1 + (r_k / (c σ̂))²), c = 2.3849, and solve "
-        "(Jᵀ W J) Δx = −Jᵀ W r.",
+        "weight each pair by w_k = 1 / (1 + (r_k / (c s))²), c = 2.3849, with the robust scale "
+        "s = 1.4826 · median |r|, and solve (Jᵀ W J) Δx = −Jᵀ W r.",
     ),
     (
         dict(sign=-1.0),
@@ -179,9 +181,9 @@ _ICP_SLIPS = (
     ),
     (
         dict(mad=False),
-        "your weights use the standard deviation of the residuals as σ̂; a few bad pairs "
-        "inflate it. The step takes the robust σ̂ = 1.4826 · median |r|.",
-        "sigma = 1.4826 * np.median(np.abs(r)).",
+        "your weights use the standard deviation of the residuals as their scale; a few bad "
+        "pairs inflate it. The weights take the robust scale s = 1.4826 · median |r|.",
+        "s = 1.4826 * np.median(np.abs(r)).",
     ),
     (
         dict(usable=False),
@@ -214,7 +216,7 @@ def check_icp_step(icp_step):
     returned pose with :func:`lagolib.scan_matching.icp_step` (pairing distance
     :data:`MAX_DISTANCE`, no prior) to ``1e-7`` relative and ``1e-9`` absolute, the heading
     compared modulo 2π.  Diagnoses a step without weights, uphill, a Jacobian without the
-    rotation, σ̂ from the standard deviation, and pairs with points that have no normal.
+    rotation, the weights' scale from the standard deviation, and pairs with points that have no normal.
 
     Parameters
     ----------
@@ -248,7 +250,7 @@ def check_icp_step(icp_step):
             continue
         hint = (
             "pairs: each moved point R(θ) p + t and its nearest usable model point q within "
-            f"{MAX_DISTANCE} m; r = n·(R p + t − q), J = [n_x, n_y, n·R'(θ)p]; σ̂ = 1.4826 median|r|; "
+            f"{MAX_DISTANCE} m; r = n·(R p + t − q), J = [n_x, n_y, n·R'(θ)p]; s = 1.4826 median|r|; "
             "Cauchy weights; Δx = −(JᵀWJ)⁻¹JᵀWr; new pose = pose + Δx, θ wrapped."
         )
         if got.shape != expected.shape:
