@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from lagolib import simulate
+from lagolib.checks import check_rng
 
 
 def reference_manhattan_world(
@@ -28,7 +29,7 @@ def reference_manhattan_world(
     **noise,
 ):
     """The original manhattan_world (argument checks left out): the definition of the world."""
-    rng = simulate._rng(rng, "reference")
+    rng = check_rng(rng, "reference")
     headings = np.array([0.0, np.pi / 2, np.pi, -np.pi / 2])
     cell = np.zeros(2, dtype=np.int64)
     h = 0  # index into headings
