@@ -9,17 +9,21 @@ of lagolib optimizes:
    ``min_translation`` metres or turned ``min_rotation`` radians since the last one;
 2. **sequential edges**: each keyframe is matched to the previous one by point-to-line ICP
    (:func:`lagolib.scan_matching.match`) with the odometry increment as a prior
-   (:func:`odometry_information`); the edge's information is the match's;
+   (:func:`odometry_information`); the edge's information is the match's.  In a corridor
+   (degeneracy above ``max_degeneracy``) the scans say nothing along it, and the translation
+   along the match's weak direction is the odometry's;
 3. **loop closures** (:func:`gate_candidates`, :func:`verify_closure`): old keyframes ``i`` near
    the new keyframe ``j`` *given the uncertainty* — the Mahalanobis distance under the relative
    covariance of chapter 3 (lecture notes, "Relative Uncertainty": *"useful to decide loop
    closure"*) — are matched without a prior, starting from the graph's prediction, and accepted
-   only when the match passes explicit rules (:class:`ClosureRules`): enough inliers, a small
-   residual, a well-conditioned match (the degeneracy test: corridors), and consistency with the
-   prediction (:func:`lagolib.uncertainty.loop_closure_test`'s χ² test);
+   only when the match passes explicit rules (:class:`ClosureRules`, :data:`VERDICTS`): it
+   converged, enough inliers, a small residual, a well-conditioned match (the degeneracy test:
+   corridors), an unambiguous window search, no walls where the old pass saw free space, and
+   consistency with the prediction (:func:`lagolib.uncertainty.loop_closure_test`'s χ² test);
 4. **re-optimization**: in the incremental front end, Gauss–Newton after each accepted closure,
    so that the next predictions use the corrected trajectory.  The batch variant gates every
-   candidate against the chain of sequential edges and optimizes once at the end.
+   candidate against the chain of sequential edges, optimizes once at the end and prunes the
+   closures that do not fit the optimum.
 
 The graph's vertex ids are the scans' indices in the log (0-based, in ``FLASER`` order), so any
 result can be compared with the log's reference poses (:attr:`lagolib.scans.LaserLog.reference`).
