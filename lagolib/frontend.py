@@ -60,7 +60,7 @@ from .scan_matching import (
     free_space_conflicts,
     match,
 )
-from .scans import LaserLog
+from .scans import LaserLog, chain_increments
 from .uncertainty import information_matrix, relative_covariances
 
 __all__ = [
@@ -425,11 +425,15 @@ def gate_candidates(graph, j, candidates, rules, *, poses=None, covariances=None
         cov = A @ cov_i @ np.swapaxes(A, 1, 2)  # Σ_i|j carried into the error e_ij
     else:
         cov = covariances
+    return _gate_d2(pred, cov, rules), pred, cov
+
+
+def _gate_d2(pred, cov, rules):
+    """``max(d − overlap, 0)² / σ²`` with ``σ²`` the variance along the line of sight."""
     d = np.hypot(pred[:, 0], pred[:, 1])
     los = pred[:, :2] / np.maximum(d, 1e-12)[:, None]
     var = np.einsum("ci,cij,cj->c", los, cov[:, :2, :2], los)
-    d2 = np.maximum(d - rules.overlap, 0.0) ** 2 / np.maximum(var, 1e-300)
-    return d2, pred, cov
+    return np.maximum(d - rules.overlap, 0.0) ** 2 / np.maximum(var, 1e-300)
 
 
 class RelativeGate:
@@ -457,6 +461,7 @@ class RelativeGate:
         self.s = None
 
     def _refresh(self, graph, x, a):
+        graph = graph() if callable(graph) else graph
         H, free = information_matrix(graph, x, fixed=[int(graph.ids[a])])
         self.s, self.factor = a, SparseCholesky(H)
         self.block_of = np.full(graph.n, -1)
@@ -466,7 +471,8 @@ class RelativeGate:
     def covariances(self, graph, x, a, rows, z_seq, info_seq):
         """Covariances of ``e_ia`` for the rows ``rows`` (keyframe indices < ``a``).
 
-        ``graph`` holds keyframes ``0..a`` at ``x``; ``z_seq[k], info_seq[k]`` is the
+        ``graph`` (a PoseGraph, or a function returning it: it is read only when the gate
+        refactors) holds keyframes ``0..a`` at ``x``; ``z_seq[k], info_seq[k]`` is the
         sequential edge ``k → k + 1``.
         """
         rows = np.asarray(rows)
@@ -475,8 +481,8 @@ class RelativeGate:
         while self.k < a:  # carry Σ along the chain to the new keyframe
             k = self.k
             _, A, B = edge_jacobians(x[k], x[k + 1], z_seq[k])
-            T = -np.linalg.solve(B, A)
             Bi = np.linalg.inv(B)
+            T = -Bi @ A
             self.sigma = T @ self.sigma @ T.T + Bi @ np.linalg.inv(info_seq[k]) @ Bi.T
             self.k = k + 1
         cols = (3 * self.block_of[rows][:, None] + np.arange(3)).ravel()
@@ -544,7 +550,7 @@ def verify_closure(
     reason : str
     """
     ambiguity = 0.0
-    sd = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2]).max()), 0.0))
+    sd = _position_sd(cov)
     start = prediction
     if _outside_basin(cov):  # search a window
         window = (
@@ -561,8 +567,7 @@ def verify_closure(
             max_points=60,
         )
         ambiguity, start = corr.ambiguity, corr.pose
-    best = match(model_i, points_j, start, information_scale=information_scale)
-    m = best
+    m = match(model_i, points_j, start, information_scale=information_scale)
     info = m.scan_information
     e = se2.between(m.pose, prediction)
     try:
@@ -610,10 +615,14 @@ def _old_pass(i, a, rules):
     return range(lo, hi + 1)
 
 
+def _position_sd(cov):
+    """The largest standard deviation of the position block of ``cov`` (metres)."""
+    return math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2]).max()), 0.0))
+
+
 def _outside_basin(cov):
     """Is the prediction too uncertain for ICP alone (σ > 0.1 m or > 2°)?"""
-    sd = math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2]).max()), 0.0))
-    return sd > 0.1 or cov[2, 2] > (2 * DEGREE) ** 2
+    return _position_sd(cov) > 0.1 or cov[2, 2] > (2 * DEGREE) ** 2
 
 
 def _nearest_per_pass(x, old, a, rules):
@@ -731,10 +740,7 @@ def build_graph(
         z_seq[a - 1], info_seq[a - 1] = z, m.information
         if progress is not None:
             progress("sequential", a, K - 1)
-    x = np.zeros((K, 3))
-    x[0] = log.reference[kf[0]]
-    for a in range(1, K):
-        x[a] = se2.compose(x[a - 1], z_seq[a - 1])
+    x = chain_increments(log.reference[kf[0]], np.vstack([np.zeros((1, 3)), z_seq]))
     timings["sequential"] = time.perf_counter() - t
 
     # 2. loop closures
@@ -757,19 +763,16 @@ def build_graph(
         near = _nearest_per_pass(xs, old, a, rules)
         if len(near) == 0:
             continue
-        # the graph so far: keyframes 0..a, their sequential edges and (incremental) closures
-        g = _graph(
-            xs[: a + 1],
-            seq[:a],
-            z_seq[:a],
-            info_seq[:a],
-            closures if incremental else [],
-            kf[: a + 1],
-        )
-        cov = gate.covariances(g, xs[: a + 1], a, near, z_seq, info_seq)
-        d2, pred, cov = gate_candidates(
-            g, int(kf[a]), [int(kf[i]) for i in near], rules, poses=xs[: a + 1], covariances=cov
-        )
+
+        # the graph so far (keyframes 0..a, their sequential edges and, incremental, the
+        # closures): built only when the gate refactors
+        def graph_so_far(a=a, xs=xs):
+            found = closures if incremental else []
+            return _graph(xs[: a + 1], seq[:a], z_seq[:a], info_seq[:a], found, kf[: a + 1])
+
+        cov = gate.covariances(graph_so_far, xs[: a + 1], a, near, z_seq, info_seq)
+        pred = se2.between(xs[near], xs[a])
+        d2 = _gate_d2(pred, cov, rules)  # gate_candidates' test, with the gate's covariances
         ok = d2 <= _chi2_quantile(rules.confidence, 1)
         gated += int(ok.sum())
         order = np.argsort(d2[ok], kind="stable")[: rules.max_candidates]

@@ -138,6 +138,17 @@ class ScanModel:
         return len(self.points)
 
 
+def _pose(value, what):
+    """A finite pose ``(x, y, theta)`` as a float array of shape (3,)."""
+    try:
+        p = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        p = np.zeros(0)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise OptionError(f"{what} must be a finite pose (x, y, theta); got {value!r}")
+    return p
+
+
 def _points(value, what):
     try:
         p = np.array(value, dtype=float)
@@ -390,9 +401,7 @@ def match(
     if not isinstance(model, ScanModel):
         model = ScanModel(model)
     p = _points(points, f"{where}: points")
-    x0 = np.array(guess, dtype=float)
-    if x0.shape != (3,) or not np.all(np.isfinite(x0)):
-        raise OptionError(f"{where}: guess must be a finite pose (x, y, theta); got {guess!r}")
+    x0 = _pose(guess, f"{where}: guess")
     max_distance = check_real(max_distance, "max_distance", where, minimum=0.0, strict=True)
     max_iterations = check_int(max_iterations, "max_iterations", where, minimum=1)
     tolerance = check_real(tolerance, "tolerance", where, minimum=0.0, strict=True)
@@ -555,11 +564,7 @@ def correlative_search(
     if not isinstance(model, ScanModel):
         model = ScanModel(model)
     p = _points(points, f"{where}: points")
-    z = np.array(prediction, dtype=float)
-    if z.shape != (3,) or not np.all(np.isfinite(z)):
-        raise OptionError(
-            f"{where}: prediction must be a finite pose (x, y, theta); got {prediction!r}"
-        )
+    z = _pose(prediction, f"{where}: prediction")
     try:
         half, ang = (float(w) for w in window)
     except (TypeError, ValueError):
@@ -638,9 +643,7 @@ def free_space_conflicts(ranges_i, angles, max_range, points_j, pose, *, margin=
     if r_i.ndim != 1 or a.shape != r_i.shape or len(a) < 2:
         raise OptionError(f"{where}: ranges_i and angles must be 1-D of one length (>= 2)")
     pts = _points(points_j, f"{where}: points_j")
-    pose = np.asarray(pose, dtype=float)
-    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
-        raise OptionError(f"{where}: pose must be a finite (x, y, theta)")
+    pose = _pose(pose, f"{where}: pose")
     c, s = math.cos(pose[2]), math.sin(pose[2])
     q = pts @ np.array([[c, s], [-s, c]]) + pose[:2]
     rho = np.hypot(q[:, 0], q[:, 1])
