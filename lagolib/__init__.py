@@ -93,6 +93,7 @@ from . import (
     se2,
     sgd,
     simulate,
+    tables,
     topology,
     uncertainty,
 )
@@ -126,6 +127,7 @@ from .plotting import (
     plot_spanning_tree,
     plot_trajectories,
 )
+from .tables import Table
 
 __version__ = "0.1.0"
 
@@ -142,6 +144,8 @@ def __getattr__(name):
 
 
 __all__ = [
+    "Table",
+    "tables",
     "se2",
     "simulate",
     "datasets",

@@ -10,8 +10,9 @@ build them from laser logs.
     lagolib certify FILE [--initial odometry|lago] [--max-escapes N] [-o OUT.g2o]
                                        is it the global optimum? LAGO -> Gauss-Newton -> chordal
                                        polish -> certificate (-> escape), :func:`lagolib.certify.solve`
-    lagolib plot FILE [--poses P.txt] [--ellipses] -o OUT.png
-                                       odometric edges solid, loop closures dotted (Carlone Fig. 1)
+    lagolib plot FILE [--poses P.txt] [--ellipses [--confidence P | --sigma K] [--every K]] -o OUT.png
+                                       odometric edges solid, loop closures dotted (Carlone Fig. 1);
+                                       --ellipses: 95 % position ellipses of a sample of the poses
     lagolib frontend LOG -o OUT.g2o [--progress] [--simulated-odometry FRACTION DEG]
                                        a pose graph from a laser log (:mod:`lagolib.frontend`):
                                        keyframes, ICP, gated and verified loop closures; on the
@@ -20,7 +21,13 @@ build them from laser logs.
                                        the occupancy grid map (:mod:`lagolib.occupancy`); a LOG
                                        alone: front end, certify.solve and map in one call
     lagolib datasets                   the registered benchmarks and where each one is
-    lagolib book student-copies OUTDIR the book's tools (:mod:`lagolib.book`)
+    lagolib book write OUTDIR          the full book, from this installation, into a folder
+    lagolib book student-copies OUTDIR [--no-hints]
+                                       every chapter with its solutions replaced by stubs
+                                       (:mod:`lagolib.book`)
+    lagolib book grade SUBMISSIONS... -o GRADEBOOK.csv [--assignment FILE.toml]
+                                       run a class's notebooks and grade them with lagolib's
+                                       own checks (:mod:`lagolib.grading`)
 
 ``FILE`` is a g2o or TORO file, or the name of a registered benchmark (``lagolib datasets``) or of
 a shipped example (``square_loop``, ``manhattan200``, ``grid100``).  ``LOG`` is a Carmen laser
@@ -85,7 +92,16 @@ from .sgd import sgd
 __all__ = ["main", "COMMANDS", "METHODS", "INITIALS", "NOT_CERTIFIED"]
 
 #: Commands handed over whole to another module's ``main(argv)``.
-COMMANDS = {"book": book.main}
+def _book(argv):
+    """``lagolib book``: ``grade`` is :mod:`lagolib.grading`'s, the rest :mod:`lagolib.book`'s."""
+    if argv and argv[0] == "grade":
+        from . import grading
+
+        return grading.main(argv[1:])
+    return book.main(argv)
+
+
+COMMANDS = {"book": _book}
 #: ``lagolib solve --method`` choices.
 METHODS = ("lago", "gn", "lm", "lago+gn", "sgd")
 #: ``lagolib certify --initial`` choices: the file's poses, or LAGO's.
@@ -142,6 +158,16 @@ def _positive_int(text):
 #: --dpi bounds: below 10 dpi the labels' fonts cannot be rendered; above 2000 the 6-inch image
 #: passes Agg's limit of 2^16 pixels a side and needs gigabytes.
 _DPI_RANGE = (10, 2000)
+
+
+def _probability(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 < value < 1.0:
+        raise argparse.ArgumentTypeError(f"{text} is not a probability in (0, 1)")
+    return value
 
 
 def _dpi(text):
@@ -869,21 +895,28 @@ def _cmd_plot(args):
     if args.ellipses:
         from .uncertainty import marginal_covariances
 
-        every = args.every or max(1, graph.n // 100)
-        rows = np.arange(0, graph.n, every)
-        covariances = rows, marginal_covariances(graph, graph.ids[rows])
+        # every pose's block (selected inversion computes them all at the cost of a few); the
+        # plot picks every K-th, or by its own rule (plot_covariance_ellipses' every=None)
+        covariances = marginal_covariances(graph)
     title = args.title if args.title is not None else Path(path).name
+    drawn = []  # the ellipses' legend text, once drawn
 
     def draw(ax):
         _draw_graph(ax, graph, title)
         if covariances is not None:
             from .plotting import plot_covariance_ellipses
 
-            rows, cov = covariances
-            plot_covariance_ellipses(graph.poses[rows], cov, ax, n_sigma=args.sigma)
+            level = (
+                {"confidence": args.confidence} if args.sigma is None else {"n_sigma": args.sigma}
+            )
+            plot_covariance_ellipses(graph.poses, covariances, ax, every=args.every, **level)
+            drawn.append(ax.collections[-1].get_offsets().shape[0])
+            # "95 % confidence ellipses (every 123rd pose)": the count is printed instead
+            drawn.append(ax.get_legend_handles_labels()[1][-1].partition(" (every")[0])
+            ax.legend(loc="best", fontsize=8)
 
     _save_figure(draw, output, args.dpi)
-    what = f" with {covariances[0].size} {args.sigma:g}-sigma ellipses" if covariances else ""
+    what = f" with {drawn[0]} {drawn[1]}" if covariances is not None else ""
     print(f"wrote {output} ({graph.n} poses, {graph.m} edges{what})")
     return 0
 
@@ -1685,7 +1718,11 @@ def _parser():
             f"square at the default {_DPI} dpi).\n"
             "--ellipses adds each pose's position uncertainty (the marginal covariance of the\n"
             "least-squares problem linearized at the drawn poses, first pose fixed): meaningful\n"
-            "at an optimum, e.g. the output of 'lagolib solve'.\n\n"
+            "at an optimum, e.g. the output of 'lagolib solve'.  Each ellipse holds 95 % of a\n"
+            "Gaussian's mass (--confidence, or --sigma for a scale in standard deviations), and\n"
+            "only a sample is drawn where they would bury the map: at most 100 whose areas add\n"
+            "up to at most a quarter of the map's bounding box, but at least 10 (--every K picks\n"
+            "every K-th pose instead).\n\n"
             "example:\n"
             "  lagolib plot intel_solved.g2o --ellipses -o intel.png\n"
             "  lagolib plot ring --poses ring_truth.txt -o ring_truth.png"
@@ -1703,9 +1740,24 @@ def _parser():
         type=_positive_int,
         default=None,
         metavar="K",
-        help="an ellipse on every K-th pose (default: about 100 ellipses)",
+        help="an ellipse on every K-th pose (default: at most 100 whose areas add up to at most "
+        "a quarter of the map, at least 10)",
     )
-    p.add_argument("--sigma", type=_positive_float, default=3.0, help="ellipse size in sigmas")
+    level = p.add_mutually_exclusive_group()
+    level.add_argument(
+        "--confidence",
+        type=_probability,
+        default=0.95,
+        metavar="P",
+        help="the probability mass inside each ellipse, in (0, 1)",
+    )
+    level.add_argument(
+        "--sigma",
+        type=_positive_float,
+        default=None,
+        metavar="K",
+        help="instead of --confidence, the ellipses' size in standard deviations",
+    )
     p.add_argument("--title", default=None, help="title (default: the file name)")
     p.add_argument("--dpi", type=_dpi, default=_DPI, help="resolution (10 to 2000)")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="image (.png, .pdf, .svg)")
@@ -1839,6 +1891,10 @@ _SHELL_OPTIONS = (
     (r"\bmax_escapes=(\d+)", "--max-escapes {v}", "its cap of {v} escapes"),
     (r"\bforce=True\b", "--force", None),
     (r"\bbook_dir='([^']*)'", "--book {v}", None),
+    (r"\bbook='([^']*)'", "--book {v}", None),
+    (r"\bjobs=('[^']*'|[-\w.]+)", "--jobs {v}", None),
+    (r"\bcell_timeout=('[^']*'|[-\w.]+)", "--cell-timeout {v}", None),
+    (r"\bnotebook_timeout=('[^']*'|[-\w.]+)", "--notebook-timeout {v}", None),
 )
 #: Python advice in library messages that no option expresses, and what to say in the shell.
 _SHELL_PHRASES = (
@@ -1865,7 +1921,10 @@ _SHELL_PHRASES = (
     ),
 )
 #: Options of the commands handed to another module's ``main`` (not in :func:`_parser`).
-_DELEGATED_OPTIONS = {"book": {"-h", "--help", "--book", "--force"}}
+_DELEGATED_OPTIONS = {
+    "book": {"-h", "--help", "--book", "--force", "--no-hints", "-o", "--output", "--assignment",
+             "--feedback", "--cell-timeout", "--notebook-timeout", "-j", "--jobs"}
+}
 
 
 @functools.cache

@@ -210,7 +210,7 @@ def test_script_plot_draws_a_png_of_the_expected_size(aniso, tmp_path):
     assert proc.returncode == 0, proc.stderr
     n_ell = len(range(0, g.n, 3))
     assert proc.stdout.strip() == (
-        f"wrote {png} ({g.n} poses, {g.m} edges with {n_ell} 3-sigma ellipses)"
+        f"wrote {png} ({g.n} poses, {g.m} edges with {n_ell} 95 % confidence ellipses)"
     )
     assert _png_size(png) == (180, 180)
 
@@ -833,3 +833,51 @@ def test_module_runs_as_a_script():
         [sys.executable, "-m", "lagolib.cli", "solve", "--help"], capture_output=True, text=True
     )
     assert proc.returncode == 0 and "lago+gn" in proc.stdout
+
+
+# ----------------------------------------------------------------------------- plot --ellipses
+def _weak_square(tmp_path, n=240):
+    """One lap of a 20 m square, ``n`` poses, weak odometry and one loop closure: ellipses metres
+    across, written as a g2o file."""
+    side = n // 4
+    steps = np.tile([20.0 / side, 0.0, 0.0], (n - 1, 1))
+    steps[side - 1 :: side, 2] = np.pi / 2  # turn left at each corner
+    poses = np.zeros((n, 3))
+    for k in range(1, n):
+        poses[k] = se2.compose(poses[k - 1], steps[k - 1])
+    edges = [[k, k + 1] for k in range(n - 1)] + [[0, n - 1]]
+    z = np.vstack([steps, se2.between(poses[0], poses[n - 1])])
+    info = np.tile(np.diag([4.0, 4.0, 100.0]), (n, 1, 1))
+    path = tmp_path / "weak.g2o"
+    lagolib.write_g2o(lagolib.PoseGraph(poses, edges, z, info), path)
+    return path
+
+
+def test_plot_ellipses_state_their_confidence_and_are_subsampled(capsys, tmp_path):
+    import matplotlib.image
+
+    path = _weak_square(tmp_path)
+    png = tmp_path / "e.png"
+    rc, out, err = _call(capsys, "plot", path, "--ellipses", "-o", png, "--dpi", 40)
+    assert rc == 0, err
+    # 240 poses with 95 % ellipses metres across on a 20 m square: the minimum, 10, drawn
+    assert out.strip() == f"wrote {png} (240 poses, 240 edges with 10 95 % confidence ellipses)"
+    rgb = (matplotlib.image.imread(png)[..., :3] * 255).round().astype(int)
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    # tab:purple (148, 103, 189), even blended with the white: red and blue above green; the
+    # odometry's blue has red below green, the closures' red has blue at green's level
+    assert np.sum((r > g + 20) & (b > g + 20)) > 100
+    rc, out, err = _call(capsys, "plot", path, "--ellipses", "--sigma", 3, "-o", png, "--dpi", 40)
+    assert rc == 0, err
+    assert out.strip().endswith("with 10 98.9 % confidence ellipses)")
+    rc, out, err = _call(
+        capsys, "plot", path, "--ellipses", "--every", 60, "--confidence", 0.5, "-o", png
+    )
+    assert rc == 0, err
+    assert out.strip().endswith("with 4 50 % confidence ellipses)")
+    rc, _, err = _call(
+        capsys, "plot", path, "--ellipses", "--sigma", 3, "--confidence", 0.9, "-o", png
+    )
+    assert rc == 2 and "not allowed with argument" in _one_error_line(err)
+    rc, _, err = _call(capsys, "plot", path, "--ellipses", "--confidence", 1.5, "-o", png)
+    assert rc == 2 and "not a probability in (0, 1)" in _one_error_line(err)

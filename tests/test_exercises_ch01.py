@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from lagolib import PoseGraph, se2, simulate
-from lagolib.exercises import ch01, passed, reset
+from lagolib.exercises import ch01, hint, passed, reset
 
 NOT_ATTEMPTED = "not attempted yet"
 
@@ -25,6 +25,13 @@ def run(capsys, check, *answers):
     result = check(*answers)
     out = capsys.readouterr().out
     return result, out
+
+
+def hints(capsys, exercise):
+    """Every hint level of ``exercise``'s last "not yet", as printed by ``hint`` (one per call)."""
+    for _ in range(6):
+        hint(exercise)
+    return capsys.readouterr().out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -81,7 +88,7 @@ def test_edge_error_placeholder_is_not_attempted(capsys, answer):
 @pytest.mark.parametrize(
     "answer, message",
     [
-        (unwrapped, "they differ by 2π. The error's angle must be wrapped"),
+        (unwrapped, "differs from lagolib's by a whole turn, 2π. The error's angle must be wrapped"),
         (frame_i, "the error in the frame of pose i"),
         (swapped, "you computed the pose of i seen from j"),
         (z_not_inverted, "you multiplied by Z_ij instead of its inverse"),
@@ -122,8 +129,10 @@ def test_edge_error_wrong_answers_are_named(capsys, answer, message):
 
 def test_edge_error_hint_does_not_give_the_code_away(capsys):
     ok, out = run(capsys, ch01.check_edge_error, frame_i)
-    assert ok is False and "Hint: build the three matrices" in out
-    assert "inv(v2t(z)) @ inv(v2t(p_i)) @ v2t(p_j)" not in out
+    assert ok is False and "build the three matrices" not in out  # a hint, not the diagnosis
+    levels = hints(capsys, "1.1")
+    assert "hint 3 of 3: build the three matrices" in levels
+    assert "inv(v2t(z)) @ inv(v2t(p_i)) @ v2t(p_j)" not in out + levels
 
 
 def test_edge_error_a_raising_function_is_feedback(capsys):
@@ -179,12 +188,12 @@ def test_heading_noise_placeholder_is_not_attempted(capsys, ratio, growth):
 @pytest.mark.parametrize(
     "ratio, growth, message",
     [
-        (10.0, "linear", "That is the ratio of the numbers of steps"),
+        (10.0, "linear", "10 is the ratio of the numbers of steps"),
         (1.0, "linear", "ten times as many independent heading errors"),
         (1 / np.sqrt(10), "linear", "You inverted it"),
-        (2.0, "linear", "distance_ratio is 2; the simulation gives 3.06."),
-        (3.16, "quadratic", "doubling σ multiplies the mean end distance by 2.00"),
-        (3.16, "square root", "the simulation says 'linear'"),
+        (2.0, "linear", "distance_ratio = 2 is too small: less than two thirds of the reference."),
+        (3.16, "quadratic", "doubling σ would multiply the mean end distance by 4"),
+        (3.16, "square root", "growth_with_sigma = 'square root' is not what the simulation"),
         (3.16, "lin", "growth_with_sigma should be one of"),
         ("three", "linear", "distance_ratio should be one real number, got 'three' (a string)"),
         ("3.1", "linear", "distance_ratio should be one real number, got '3.1' (a string"),
@@ -208,13 +217,17 @@ def test_heading_noise_wrong_answers_are_named(capsys, ratio, growth, message):
     assert ok is False and not passed("1.2")
     assert out.startswith("Exercise 1.2 — not yet:")
     assert message in out
+    assert "3.06" not in out  # the simulation's numbers are the last hint
+    assert "'linear'" not in out or "should be one of" in out
 
 
 def test_heading_noise_reports_both_mistakes(capsys):
     ok, out = run(capsys, ch01.check_heading_noise, 10.0, "square root")
     assert ok is False
-    assert "the simulation says 'linear'" in out
-    assert "distance_ratio is 10; the simulation gives 3.06" in out
+    assert "growth_with_sigma = 'square root' is not what the simulation shows" in out
+    assert "distance_ratio = 10 is too large: more than 1.5 times the reference." in out
+    levels = hints(capsys, "1.2")
+    assert "hint 3 of 3: the check's own simulation" in levels and "(ratio 3.06" in levels
 
 
 def test_end_distances_close_without_noise_and_scale_with_sigma():
@@ -253,22 +266,25 @@ def test_chi2_laps_placeholder_is_not_attempted(capsys, answers):
 @pytest.mark.parametrize(
     "answers, message",
     [
-        ((117, "linear"), "chi2_one_lap is 117, but one lap has χ² = 2.5e-26"),
-        ((0.0, "quadratic"), "the same place one lap earlier"),
-        ((0.0, "constant"), "every further lap adds 40 loop closures"),
+        ((117, "linear"), "chi2_one_lap = 117 is too large (the check allows 1e-6"),
+        ((-3, "linear"), "χ² is a sum of squares, it cannot be negative"),
+        ((0.0, "quadratic"), "(every lap would add more than the one before)"),
+        ((0.0, "constant"), "(every lap after the first would add nothing)"),
         ((0.0, "exponential"), "growth should be one of ['constant', 'linear', 'quadratic']"),
         ((True, "linear"), "chi2_one_lap should be one real number, got True (a bool)"),
         (("zero", "linear"), "chi2_one_lap should be one real number, got 'zero' (a string)"),
     ],
-    ids=["3m", "quadratic", "constant", "bad-choice", "bool", "text"],
+    ids=["3m", "negative", "quadratic", "constant", "bad-choice", "bool", "text"],
 )
 def test_chi2_laps_wrong_answers_are_named(capsys, answers, message):
     ok, out = run(capsys, ch01.check_chi2_laps, *answers)
     assert ok is False and not passed("1.3")
     assert out.startswith("Exercise 1.3 — not yet:")
     assert message in out
-    # the computed table is shown with every prediction, not with an answer of the wrong kind
-    assert ("per lap after the first" in out) == ("real number" not in message)
+    # the computed table is the last hint of a prediction, never part of the diagnosis
+    assert "per lap after the first" not in out
+    levels = hints(capsys, "1.3")
+    assert ("per lap after the first" in levels) == ("real number" not in message)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -290,18 +306,33 @@ def test_toro_frames_placeholder_is_not_attempted(capsys, answers):
 @pytest.mark.parametrize(
     "answers, message",
     [
-        ((False, False), "same_isotropic is False, but the file's matrices are the same"),
-        ((True, True), "same_anisotropic is True, but the file's matrices differ"),
-        ((False, True), "a rotation leaves an isotropic block unchanged"),
-        (("yes", False), "same_isotropic should be True or False, got 'yes' (a string)"),
+        ((False, False), "same_isotropic = False is not what the TORO file holds."),
+        ((True, True), "same_anisotropic = True is not what the TORO file holds."),
+        ((False, True), "same_isotropic = False is not what"),
+        (("maybe", False), "same_isotropic should be True or False, got 'maybe' (a string)"),
+        (("True", False), "True and False are written without quotes"),
     ],
-    ids=["iso", "aniso", "both", "text"],
+    ids=["iso", "aniso", "both", "text", "quoted"],
 )
 def test_toro_frames_wrong_answers_are_named(capsys, answers, message):
     ok, out = run(capsys, ch01.check_toro_frames, *answers)
     assert ok is False and not passed("1.4")
     assert out.startswith("Exercise 1.4 — not yet:")
     assert message in out
+    assert "isotropic 1.4e-16" not in out  # what the file holds is the last hint
+
+
+def test_toro_frames_explains_in_the_hints(capsys):
+    run(capsys, ch01.check_toro_frames, False, True)
+    levels = hints(capsys, "1.4")
+    assert "hint 2 of 3: a rotation leaves an isotropic block unchanged" in levels
+    assert "turns an anisotropic block's principal axes" in levels
+    assert "hint 3 of 3: what the check read in the files" in levels and "anisotropic 0.92" in levels
+
+
+def test_toro_frames_accepts_yes_and_no(capsys):
+    ok, out = run(capsys, ch01.check_toro_frames, "yes", "No")
+    assert ok is True and out.startswith("Exercise 1.4 — correct:")
 
 
 def test_toro_file_information_is_the_frame_i_information():

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from lagolib import book, gauss_newton
-from lagolib.exercises import ch02, passed, reset
+from lagolib.exercises import ch02, hint, passed, reset
 
 CHAPTER = Path(__file__).resolve().parent.parent / "book" / "02_least_squares_slam.ipynb"
 
@@ -26,6 +26,13 @@ def run(capsys, check, *args):
     out = capsys.readouterr().out
     assert out.count("Exercise 2.") == 1, out
     return ok, out
+
+
+def hints(capsys, exercise):
+    """Every hint level of ``exercise``'s last "not yet", as ``hint`` prints them."""
+    for _ in range(6):
+        hint(exercise)
+    return capsys.readouterr().out
 
 
 def _stub(*_):
@@ -96,7 +103,7 @@ def test_jacobians_not_attempted(capsys, answer):
                 reference_blocks(a, b, z)[0] * [1.0, 1.0, 1.0] + np.diag([0, 0, 2.0]),
                 reference_blocks(a, b, z)[1],
             ),
-            "A_ij is right except its entry [2, 2], de_theta/dtheta_i: yours 1, expected -1",
+            "A_ij is right except its entry [2, 2], de_theta/dtheta_i (yours is 1): how does",
         ),
         (lambda a, b, z: np.zeros(3), "jacobian_blocks should return two 3x3 arrays, (A, B)"),
         (lambda a, b, z: (np.eye(3), np.eye(2)), "B_ij has shape (2, 2), expected (3, 3)"),
@@ -108,7 +115,8 @@ def test_jacobians_wrong(capsys, fn, message):
     assert not ok and not passed("2.1")
     assert "Exercise 2.1 — not yet: on edge 1 of 5" in out
     assert message in out
-    assert "Hint:" in out
+    assert 'Stuck? hint("2.1") gives a hint' in out
+    assert "[[c, s, 0]" not in out and "(c, s, 0)" not in out  # the blocks: hints only
 
 
 def test_jacobians_wrong_only_on_a_later_edge(capsys):
@@ -122,7 +130,21 @@ def test_jacobians_wrong_only_on_a_later_edge(capsys):
 
     ok, out = run(capsys, ch02.check_jacobians, fn)
     assert not ok
-    assert "on edge 4 of 5" in out and "B_ij differs from the reference by up to 0.001" in out
+    assert "on edge 4 of 5" in out
+    assert "B_ij differs from the reference in 9 of its 9 entries: at index (0, 2) yours is " in out
+    assert "larger, by 0.001." in out
+
+
+def test_jacobians_hints_come_one_level_per_call(capsys):
+    run(capsys, ch02.check_jacobians, lambda a, b, z: reference_blocks(a, b, z)[::-1])
+    levels = hints(capsys, "2.1").splitlines()[:4]
+    assert [line.split(":", 1)[0] for line in levels] == [
+        "Exercise 2.1 — hint 1 of 3",
+        "Exercise 2.1 — hint 2 of 3",
+        "Exercise 2.1 — hint 3 of 3",
+        "Exercise 2.1 — no more hints",
+    ]
+    assert "B_ij's rows are (c, s, 0), (-s, c, 0), (0, 0, 1)" in levels[2]
 
 
 # ----------------------------------------------------------------------------- 2.2
@@ -209,7 +231,10 @@ def test_contribution_wrong(capsys, fn, message):
     assert not ok and not passed("2.2")
     assert "Exercise 2.2 — not yet: on edge 1 of 3: " in out
     assert message in out
-    assert "Hint:" in out
+    assert 'Stuck? hint("2.2")' in out
+    # the diagnosis names the slip; the right products are the last hint level
+    assert "A^T Omega B, B^T Omega A" not in out and "H_ij = A^T Omega B" not in out
+    assert "J^T Omega J has the blocks A^T Omega A, A^T Omega B" in hints(capsys, "2.2")
 
 
 def test_contribution_generic_difference(capsys):
@@ -220,7 +245,7 @@ def test_contribution_generic_difference(capsys):
         return (H_ii * 1.01, *rest)
 
     ok, out = run(capsys, ch02.check_edge_contribution, fn)
-    assert not ok and "H_ii differs from the reference by up to" in out
+    assert not ok and "H_ii differs from the reference in 9 of its 9 entries: at index" in out
 
 
 # ----------------------------------------------------------------------------- 2.3
@@ -250,13 +275,13 @@ def test_structure_not_attempted(capsys, answer):
 @pytest.mark.parametrize(
     "answer, messages",
     [
-        ((27, 6), ["n_blocks is 27: that is 4 more", "you counted edges"]),
-        ((15, 6), ["n_blocks is 15: that is 8 fewer", "two off-diagonal blocks, H_ij and H_ji"]),
-        ((16, 6), ["n_blocks is 16", "every pose also has its diagonal block"]),
-        ((23, 3), ["null_dim is 3: that is 3 fewer", "this graph has two"]),
-        ((23, 0), ["null_dim is 0", "H is singular"]),
-        ((49, 3), ["n_blocks is 49", "H is sparse", "null_dim is 3"]),
-        ((23, 4), ["null_dim is 4", "3 degrees of freedom"]),
+        ((27, 6), ["n_blocks = 27 is too large: you counted edges"]),
+        ((15, 6), ["n_blocks = 15 is too small: each pair", "two off-diagonal blocks, H_ij and H_ji"]),
+        ((16, 6), ["n_blocks = 16 is too small", "every pose also has its diagonal block"]),
+        ((23, 3), ["null_dim = 3 is too small", "is this graph connected?"]),
+        ((23, 0), ["null_dim = 0 is too small", "H is singular"]),
+        ((49, 3), ["n_blocks = 49 is too large", "H is sparse", "null_dim = 3 is too small"]),
+        ((23, 4), ["null_dim = 4 is too small."]),
         (("23", 6), ["n_blocks should be a whole number, got '23' (a string"]),
         ((23, True), ["null_dim should be a whole number, got True (a bool)"]),
         ((23.5, 6.0), ["n_blocks should be a whole number, got 23.5"]),
@@ -266,11 +291,14 @@ def test_structure_wrong(capsys, answer, messages):
     ok, out = run(capsys, ch02.check_structure, *answer)
     assert not ok and not passed("2.3")
     assert "Exercise 2.3 — not yet:" in out
-    # the actual values are printed with every prediction, not with an answer of the wrong kind
-    kind = any("should be" in m for m in messages)
-    assert ("lagolib's H has 23 non-zero blocks" in out) is not kind
+    # neither the actual values nor the graph's counts are part of the diagnosis
+    assert "lagolib's H has" not in out and "distinct pairs" not in out
     for m in messages:
         assert m in out
+    kind = any("should be" in m for m in messages)
+    assert ("8 distinct pairs of poses, in 2 connected components" in hints(capsys, "2.3")) is not (
+        kind
+    )
 
 
 # ----------------------------------------------------------------------------- 2.4
@@ -300,11 +328,11 @@ def test_damping_not_attempted(capsys, answer):
 @pytest.mark.parametrize(
     "answer, messages",
     [
-        (("fewer", True), ["trend is 'fewer'", "a large lambda I swamps H"]),
-        (("same", True), ["trend is 'same'", "smallest and the largest lambda_initial"]),
-        (("more", False), ["same_optimum is False", "changes the path to the minimum"]),
+        (("fewer", True), ["trend is 'fewer', which is not the answer"]),
+        (("same", True), ["trend is 'same', which is not the answer"]),
+        (("more", False), ["same_optimum is False, which is not the answer"]),
         (("faster", True), ["trend should be one of ['more', 'fewer', 'same']"]),
-        (("more", "yes"), ["same_optimum should be True or False, got 'yes' (a string)"]),
+        (("more", "maybe"), ["same_optimum should be True or False, got 'maybe' (a string)"]),
         (("more", 1), ["same_optimum should be True or False, got 1 (an int)"]),
         ((b"more", True), ["trend should be one of ['more', 'fewer', 'same'] (a string)"]),
     ],
@@ -313,17 +341,28 @@ def test_damping_wrong(capsys, answer, messages):
     ok, out = run(capsys, ch02.check_damping, *answer)
     assert not ok and not passed("2.4")
     assert "Exercise 2.4 — not yet:" in out
-    # the sweep is printed with every prediction, not with an answer of the wrong kind
-    kind = any("True or False," in m or "(a string)" in m for m in messages)
-    assert ("1e+05: 10" in out) is not kind
+    # the sweep is the last hint of a prediction, never part of the diagnosis
+    assert "1e+05: 10" not in out
     for m in messages:
         assert m in out
+    kind = any("True or False," in m or "(a string)" in m for m in messages)
+    levels = hints(capsys, "2.4")
+    assert ("hint 3 of 3: the check's sweep: iterations per lambda_initial" in levels) is not kind
+    if answer == ("fewer", True):
+        assert "a large lambda I swamps H" in levels
+    if answer == ("more", False):
+        assert "changes the path to the minimum" in levels
+
+
+def test_damping_accepts_yes_for_a_yes_no_question(capsys):
+    ok, out = run(capsys, ch02.check_damping, "more", "yes")
+    assert ok and out.startswith("Exercise 2.4 — correct:")
 
 
 # ----------------------------------------------------------------------------- the chapter
 def test_chapter_has_the_exercises():
     nb = json.loads(CHAPTER.read_text(encoding="utf-8"))
-    found = book.exercises(nb, str(CHAPTER))
+    found = [x for x in book.exercises(nb, str(CHAPTER)) if x["kind"] != "derive"]
     assert [(x["id"], x["kind"]) for x in found] == [
         ("2.1", "implement"),
         ("2.2", "implement"),

@@ -8,8 +8,8 @@ import pytest
 
 import lagolib
 from lagolib import se2, simulate
-from lagolib.book import exercises
-from lagolib.exercises import ch03, passed, reset
+from lagolib.book import exercises, solution_check_source
+from lagolib.exercises import ch03, hint, passed, reset
 
 CHAPTER = Path(__file__).resolve().parent.parent / "book" / "03_uncertainty.ipynb"
 
@@ -23,6 +23,13 @@ def _fresh():
 
 def _out(capsys):
     return capsys.readouterr().out
+
+
+def _hints(capsys, exercise):
+    """Every hint level of ``exercise``'s last "not yet", as ``hint`` prints them."""
+    for _ in range(4):
+        hint(exercise)
+    return _out(capsys)
 
 
 def _block(a, r, c=None):
@@ -97,15 +104,17 @@ def test_31_sparse_result_is_named(capsys):
     assert ch03.check_marginal_covariance(sparse) is False
     out = _out(capsys)
     assert "should return an array of real numbers of shape (3, 3)" in out
-    assert "it returned a csc_matrix (a scipy.sparse matrix)" in out and ".toarray()" in out
+    assert "it returned a csc_matrix (a scipy.sparse matrix)" in out
+    assert "(call .toarray() on a sparse result)" in _hints(capsys, "3.1")
 
 
 def test_31_conditional_sigma_is_reported(capsys):
     ch03.check_marginal_covariance(lambda H, free, v: np.linalg.inv(_block(H.toarray(), v - 1)))
     out = _out(capsys)
-    # the conditional sigma is the smaller of the two numbers the message prints
-    a, b = (float(x.split()[0]) for x in out.split("position sigma ")[1].split(" instead of "))
-    assert 0 < a < b
+    assert "you inverted H's 3x3 block alone" in out and "it is too small" in out
+    # the student's own (conditional) sigma is printed, the marginal one is not
+    a = float(out.split("your position sigma ")[1].split()[0])
+    assert 0 < a < 0.1 and "instead of" not in out
 
 
 def test_31_raising_function_is_feedback(capsys):
@@ -114,7 +123,8 @@ def test_31_raising_function_is_feedback(capsys):
 
     assert ch03.check_marginal_covariance(boom) is False
     out = _out(capsys)
-    assert "raised LinAlgError" in out and "H.toarray()" in out
+    assert "raised LinAlgError" in out and "H.toarray()" not in out
+    assert "hint 1 of 3: H is a scipy.sparse matrix: H.toarray()" in _hints(capsys, "3.1")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -166,14 +176,14 @@ def test_32_stub_not_attempted(loop, shrink, top, capsys):
     "shrink, top, messages",
     [
         ("above 1", 20, ["a measurement never makes an estimate less certain"]),
-        ("0.2 to 0.5", 20, ["you predicted '0.2 to 0.5', but the ratio is 0.099"]),
+        ("0.2 to 0.5", 20, ["shrink: '0.2 to 0.5' is not the band", "shrinks more than that"]),
         ("below 0.2", 39, ["pose 39 was the most uncertain before the closure"]),
-        ("below 0.2", 21, ["pose 21 is one step from the farthest point"]),
+        ("below 0.2", 21, ["pose 21 is not the most uncertain pose after the closure"]),
         ("below 0.2", 0, ["pose 0 is the fixed anchor"]),
-        ("below 0.2", 10, ["pose 10 has position sigma 0.2"]),
+        ("below 0.2", 10, ["pose 10 is not the most uncertain", "(its position sigma is 0.2"]),
         ("below 0.2", 40, ["should be a pose index from 0 to 39; got 40"]),
         ("smaller", 20, ["shrink should be one of"]),
-        ("0.5 to 1", 39, ["ratio is 0.099", "pose 39 was the most uncertain"]),
+        ("0.5 to 1", 39, ["shrinks more than that", "pose 39 was the most uncertain"]),
     ],
 )
 def test_32_wrong_predictions(loop, shrink, top, messages, capsys):
@@ -182,7 +192,12 @@ def test_32_wrong_predictions(loop, shrink, top, messages, capsys):
     assert out.startswith("Exercise 3.2 — not yet")
     for m in messages:
         assert m in out
-    assert "Actual: pose 39's position sigma goes from 0.710 m to 0.070 m" in out
+    # the actual values are the last hint, never part of the diagnosis
+    assert "0.099" not in out and "Actual" not in out
+    levels = _hints(capsys, "3.2")
+    assert "hint 3 of 3: the check's numbers: pose 39's position sigma goes from 0.710 m to " in (
+        levels
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -258,8 +273,9 @@ def test_33_generic_hint_does_not_give_the_formula_away(capsys):
 
     assert ch03.check_relative_covariance(doubled) is False
     out = _out(capsys)
-    assert "expand E[(dx_j - M dx_i)(dx_j - M dx_i)^T] term by term" in out
-    assert "S_jj - M S_ij" not in out
+    levels = _hints(capsys, "3.3")
+    assert "hint 1 of 3: Sigma_j|i is the covariance of dx_j|i = dx_j - M dx_i: expand" in levels
+    assert "S_jj - M S_ij" not in out + levels
 
 
 @pytest.mark.parametrize(
@@ -355,12 +371,12 @@ def test_34_stub_not_attempted(gate_world, trend, err, capsys):
         (
             "fewer true and fewer false accepted",
             0.32,
-            "the gate accepts 9 -> 20 true and 4 -> 16 false candidates",
+            "trend: 'fewer true and fewer false accepted' is not what the gate does",
         ),
         (TREND, 0.187, "0.187 m is the reading for the gate at confidence 0.9, not 0.99"),
         (TREND, 0.342, "0.342 m is the reading for the gate at confidence 0.999"),
         (TREND, 0.54, "is the largest error of all false candidates"),
-        (TREND, 0.25, "max_false_error is 0.250 m; read it off the row for confidence 0.99"),
+        (TREND, 0.25, "max_false_error = 0.25 is too small, by 10 to 50 %. Read it off the row"),
         (TREND, "0.32 m", "max_false_error should be one real number, got '0.32 m'"),
         (TREND, 32, "looks like centimetres; the answer is in metres"),
         ("rises", 0.32, "trend should be one of"),
@@ -371,9 +387,11 @@ def test_34_wrong_answers(gate_world, trend, err, message, capsys):
     out = _out(capsys)
     assert out.startswith("Exercise 3.4 — not yet")
     assert message in out
-    # the table is printed with every answer, not with one of the wrong kind
+    # the counts and the answer are the last hint, never part of the diagnosis
+    assert "0.319" not in out and "9 -> 20" not in out
     kind = "real number" in message
-    assert ("Actual: at confidence 0.99 (d^2 <= 11.34)" in out) is not kind
+    levels = _hints(capsys, "3.4")
+    assert ("the gate accepts 9 -> 20 true and 4 -> 16 false candidates" in levels) is not kind
 
 
 def test_34_largest_true_error_is_diagnosed(gate_world, capsys):
@@ -415,7 +433,7 @@ def test_chapter_3_exercises_follow_the_conventions():
         assert sol["metadata"]["tags"] == ["solution", "hide-cell"]
         assert "# your code here" in sol["metadata"]["lagolib"]["stub"]
         assert "ch03.check_" in src(check)
-        assert src(assertion) == f'assert passed("{ex}")'
+        assert src(assertion) == solution_check_source(ex)
         assert assertion["metadata"]["tags"] == ["remove-cell", "solution-check"]
         assert discussion["metadata"]["tags"] == ["solution"]
         assert src(discussion).startswith("<details>\n<summary>Solution and discussion</summary>")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from lagolib import datasets
-from lagolib.exercises import ch04, passed, reset
+from lagolib.exercises import ch04, hint, passed, reset
 
 CHAPTER = Path(__file__).resolve().parent.parent / "book" / "04_graphs_and_cycles.ipynb"
 
@@ -23,6 +23,13 @@ def _fresh_results():
 def _run(capsys, check, *args):
     ok = check(*args)
     return ok, capsys.readouterr().out
+
+
+def _hints(capsys, exercise):
+    """Every hint level of ``exercise``'s last "not yet", as ``hint`` prints them."""
+    for _ in range(5):
+        hint(exercise)
+    return capsys.readouterr().out
 
 
 def stub(*args):
@@ -112,8 +119,10 @@ def test_incidence_wrong_column_is_named(capsys):
 
     ok, out = _run(capsys, ch04.check_incidence, last_edge_reversed)
     assert not ok
-    assert "column 1, edge 1 = (2, 1), is [0.0, -1.0, 1.0, 0.0, 0.0]" in out
-    assert "expected −1 in row 2, +1 in row 1" in out
+    assert "1 of the 7 columns is not right; the first, column 1 for edge 1 = (2, 1), is " in out
+    assert "[0.0, -1.0, 1.0, 0.0, 0.0]: which rows should hold its −1 and its +1?" in out
+    assert "expected" not in out and "[0, 1, -1, 0, 0]" not in out
+    assert "−1 at the tail i, where the edge leaves, +1 at the head j" in _hints(capsys, "4.1")
 
 
 def test_incidence_that_raises_is_feedback(capsys):
@@ -143,6 +152,7 @@ def test_chords_stub_is_not_attempted(capsys):
 def test_chords_half_answered(capsys):
     ok, out = _run(capsys, ch04.check_chords, 7, ...)
     assert not ok and "n_chords is still `...`" in out
+    assert "cyclomatic_number" not in out and "5" not in out  # no answer for a half answer
 
 
 @pytest.mark.parametrize(
@@ -151,8 +161,8 @@ def test_chords_half_answered(capsys):
         ((8, 4), ["n_tree_edges = 8 is the number of nodes", "classic off-by-one"]),
         ((7, 4), ["classic off-by-one", "add up to 11"]),
         ((7, 3), ["leaves out the repeated measurements", "only 10 distinct pairs"]),
-        ((7, 6), ["m − n + 1 with the paper's n = 7"]),
-        ((6, 5), ["n_tree_edges is 6: that is 1 fewer than the reference"]),
+        ((7, 6), ["m − n + 1 with the paper's n: the '+ 1' belongs to lagolib's count"]),
+        ((6, 5), ["n_tree_edges = 6 is too small."]),
         (("7", 5), ["n_tree_edges should be a whole number, got '7' (a string"]),
         ((7, True), ["n_chords should be a whole number, got True (a bool)"]),
         ((7, 5 + 0j), ["n_chords should be a whole number, got (5+0j) (a complex number)"]),
@@ -164,9 +174,11 @@ def test_chords_mistakes(capsys, answer, messages):
     assert "Exercise 4.2 — not yet" in out
     for message in messages:
         assert message in out
-    # the actual values are printed with every prediction, not with an answer of the wrong kind
+    # the actual values are the last hint, never part of the diagnosis
+    assert "lagolib's odometric tree" not in out and "= 5" not in out
     kind = any("should be" in m for m in messages)
-    assert ("lagolib's odometric tree has 7 edges and leaves 5 chords" in out) is not kind
+    levels = _hints(capsys, "4.2")
+    assert ("lagolib's odometric tree has 7 edges and leaves 5 chords" in levels) is not kind
 
 
 def test_predict_statement_lists_the_checked_graph():
@@ -286,7 +298,7 @@ def test_circuit_mistakes(capsys, wrong, message):
     assert "Exercise 4.3 — not yet" in out
     for part in message.split("|"):
         assert part.replace(" (…)", "") in out
-    assert "chord e" in out and "expected: [" in out
+    assert "chord e" in out and "expected" not in out  # the right vector is not shown
 
 
 def test_circuit_pair_instead_of_vector(capsys):
@@ -326,10 +338,10 @@ def test_exploration_stub_is_not_attempted(capsys, city):
 @pytest.mark.parametrize(
     "answer, messages",
     [
-        (("odometric", False), ["safer_tree = 'odometric'", "the bfs tree's circuits are shorter"]),
-        (("bfs", True), ["odometric tree's 𝒞 is identical", "only its depth changes"]),
+        (("odometric", False), ["safer_tree = 'odometric' is not the tree"]),
+        (("bfs", True), ["odometric_anchor_matters = True is not what the odometric tree's"]),
         (("shortest", False), ["safer_tree should be one of ['odometric', 'bfs']"]),
-        (("bfs", "no"), ["odometric_anchor_matters should be True or False, got 'no'"]),
+        (("bfs", "perhaps"), ["odometric_anchor_matters should be True or False, got 'perhaps'"]),
         (("bfs", 0), ["odometric_anchor_matters should be True or False, got 0 (an int)"]),
     ],
 )
@@ -339,6 +351,18 @@ def test_exploration_mistakes(capsys, city, answer, messages):
     assert "Exercise 4.4 — not yet" in out
     for message in messages:
         assert message in out
+    assert "°" not in out and "depth" not in out  # the numbers are the last hint
+    levels = _hints(capsys, "4.4")
+    if answer == ("odometric", False):
+        assert "8.0° with the odometric tree, 2.7° with the BFS tree" in levels
+        assert "the bfs tree's circuits are shorter" in levels
+    if answer == ("bfs", True):
+        assert "odometric tree's 𝒞 is identical" in levels and "only its depth changes" in levels
+
+
+def test_exploration_accepts_no_for_false(capsys, city):
+    ok, out = _run(capsys, ch04.check_tree_exploration, "bfs", "no", city)
+    assert ok and out.startswith("Exercise 4.4 — correct")
 
 
 def test_exploration_without_a_graph_is_feedback(capsys):

@@ -5,7 +5,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
-from lagolib.exercises import ch05, passed, reset
+from lagolib.exercises import ch05, hint, passed, reset
 
 
 @pytest.fixture(autouse=True)
@@ -18,6 +18,13 @@ def _fresh_results():
 def run(capsys, check, *answer):
     ok = check(*answer)
     return ok, capsys.readouterr().out
+
+
+def hints(capsys, exercise):
+    """Every hint level of ``exercise``'s last "not yet", as ``hint`` prints them."""
+    for _ in range(5):
+        hint(exercise)
+    return capsys.readouterr().out
 
 
 # --------------------------------------------------------------------------------- 5.1 phase 1
@@ -89,7 +96,70 @@ def test_phase1_raises(capsys):
         return spsolve((A.T @ sp.diags(omega) @ A).tocsc(), A @ (omega * delta_bar))
 
     ok, out = run(capsys, ch05.check_phase1, transposed)
-    assert not ok and "raised" in out and "Hint" in out
+    assert not ok and "raised" in out and 'Stuck? hint("5.1")' in out
+    assert "A is a scipy.sparse matrix of shape (n, m)" in hints(capsys, "5.1")
+
+
+# a right answer that makes the information matrix dense: exercise 5.1 asks for nothing dense
+def _dense_lstsq(A, delta_bar, omega):
+    Ad = A.toarray()
+    return np.linalg.lstsq(Ad @ np.diag(omega) @ Ad.T, Ad @ (omega * delta_bar), rcond=None)[0]
+
+
+def _dense_solve(A, delta_bar, omega):
+    info = (A @ sp.diags(omega) @ A.T).todense()
+    return np.asarray(np.linalg.solve(info, A @ (omega * delta_bar))).ravel()
+
+
+def _dense_but_caught(A, delta_bar, omega):
+    try:
+        (A @ sp.diags(omega) @ A.T).toarray()
+    except Exception:  # noqa: BLE001 - the student swallows the refusal: still refused
+        pass
+    return phase1(A, delta_bar, omega)
+
+
+@pytest.mark.parametrize(
+    "dense, method",
+    [(_dense_lstsq, ".toarray() on a 23×35"), (_dense_solve, ".todense() on a 23×23"),
+     (_dense_but_caught, ".toarray() on a 23×23")],
+    ids=["lstsq", "todense-solve", "caught"],
+)
+def test_phase1_refuses_a_dense_solution(capsys, dense, method):
+    """A right θ̂ computed densely is "not yet" (it was "correct" before issue 24)."""
+    ok, out = run(capsys, ch05.check_phase1, dense)
+    assert not ok and not passed("5.1")
+    assert f"your phase1 made a sparse matrix dense ({method} matrix)" in out
+    assert "exercise 5.1 keeps every matrix sparse" in out
+
+
+def test_phase1_sparse_solutions_of_every_form_pass(capsys):
+    from scipy.sparse.linalg import factorized
+
+    def sparse_rhs(A, delta_bar, omega):  # spsolve with a sparse right-hand side: a vector
+        x = spsolve((A.multiply(omega) @ A.T).tocsc(), sp.csc_matrix(A @ (omega * delta_bar)).T)
+        return x.toarray().ravel() if sp.issparse(x) else x
+
+    def factor(A, delta_bar, omega):
+        return factorized((A @ sp.diags_array(omega) @ A.T).tocsc())(A @ (omega * delta_bar))
+
+    for fn in (sparse_rhs, factor):
+        ok, out = run(capsys, ch05.check_phase1, fn)
+        assert ok, out
+
+
+def test_nothing_dense_restores_scipy():
+    m = sp.csr_matrix(np.eye(3))
+    with pytest.raises(ch05.DenseMatrixRefused):
+        with ch05.nothing_dense([]) as refused:
+            try:
+                m.toarray()
+            finally:
+                assert refused == [("toarray", (3, 3))]
+    assert m.toarray().shape == (3, 3) and sp.csc_array(np.eye(2)).todense().shape == (2, 2)
+    with ch05.nothing_dense([]) as refused:
+        assert sp.csr_matrix(np.ones((1, 4))).toarray().shape == (1, 4)  # a row may be dense
+    assert refused == []
 
 
 # ------------------------------------------------------------------------ 5.2 one chord
@@ -125,6 +195,7 @@ def test_chord_sign_of_k(capsys):
 
     ok, out = run(capsys, ch05.check_regularize_chord, flipped)
     assert not ok and "the opposite sign" in out and "C ν = −C δ" in out
+    assert "round(C δ / 2π)" not in out and "np.round" not in out  # the formula is a hint
 
 
 def test_chord_floor(capsys):
@@ -228,13 +299,15 @@ def test_n_regularized_stub(capsys):
 
 def test_n_regularized_all_closures(capsys):
     ok, out = run(capsys, ch05.check_n_regularized, 9)
-    assert not ok and "4 more than the reference" in out and "not every loop closure" in out
-    assert "regularize finds 5: 2->22: k=+1" in out
+    assert not ok and "your prediction = 9 is too large" in out
+    assert "not every loop closure" in out and "k=" not in out
+    assert "hint 3 of 3: lagolib's regularize, chord by chord: 2->22: k=+1" in hints(capsys, "5.3")
 
 
 def test_n_regularized_whole_laps_only(capsys):
     ok, out = run(capsys, ch05.check_n_regularized, 4)
-    assert not ok and "whole lap (360°)" in out and "half a turn (180°)" in out
+    assert not ok and "whole lap (360°)" in out and "half a turn (180°)" not in out
+    assert "more than half a turn (180°) either way" in hints(capsys, "5.3")
 
 
 def test_n_regularized_start_line(capsys):
@@ -268,7 +341,10 @@ def test_noise_tolerance_warning_level(capsys):
 
 def test_noise_tolerance_swapped(capsys):
     ok, out = run(capsys, ch05.check_noise_tolerance, 0.48, 0.16)
-    assert not ok and "swapped?" in out
+    assert not ok and "your two thresholds are swapped" in out
+    # one value that is the other tree's threshold is not called a swap: that would tell it
+    ok, out = run(capsys, ch05.check_noise_tolerance, 0.48, 0.3)
+    assert not ok and "swapped" not in out and "already picks a wrong k at a smaller σθ" in out
 
 
 def test_noise_tolerance_too_low_and_off_grid(capsys):

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from lagolib import se2
-from lagolib.book import exercises
+from lagolib.book import exercises, solution_check_source
 from lagolib.errors import OptionError
-from lagolib.exercises import NOT_ATTEMPTED, ch06, passed, reset
+from lagolib.exercises import NOT_ATTEMPTED, ch06, hint, passed, reset
 
 S = np.array([[0.0, -1.0], [1.0, 0.0]])
 CHAPTER = Path(__file__).resolve().parent.parent / "book" / "06_lago.ipynb"
@@ -31,6 +31,13 @@ def _run(capsys, check, *answer):
     ok = check(*answer)
     out = capsys.readouterr().out
     return ok, out
+
+
+def _hints(capsys, exercise):
+    """Every hint level of ``exercise``'s last "not yet", as ``hint`` prints them."""
+    for _ in range(4):
+        hint(exercise)
+    return capsys.readouterr().out
 
 
 # --------------------------------------------------------------------------- the world
@@ -125,7 +132,7 @@ def test_frame_i_rotating_the_heading_row_is_named(capsys):
         return G @ Omega @ G.T
 
     ok, out = _run(capsys, ch06.check_frame_i, rotates_theta)
-    assert ok is False and "the heading entry [2, 2] changed from 1601.05" in out
+    assert ok is False and "the heading entry [2, 2] changed from Ω's 1601.05" in out
 
 
 def test_frame_i_covariance_instead_of_information_is_named(capsys):
@@ -297,8 +304,11 @@ def test_closer_stub_is_not_attempted(capsys, stub):
 def test_closer_wrong_prediction_prints_the_values(capsys, wrong):
     ok, out = _run(capsys, ch06.check_closer, wrong)
     assert ok is False
-    assert f"you predicted {wrong!r}, but LAGO's χ² lies 0.000157" in out
-    assert "eq. (18)" in out  # the hint
+    assert f"closer = {wrong!r} is not where LAGO lands closer" in out
+    assert "0.000157" not in out and "eq. (18)" not in out  # both are hints
+    levels = _hints(capsys, "6.3")
+    assert "hint 2 of 3: eq. (18) holds the weights" in levels
+    assert "hint 3 of 3: the check's numbers: LAGO's χ² lies 0.000157" in levels
 
 
 @pytest.mark.parametrize("bad", ["iso", 1, True, ["isotropic"]])
@@ -334,12 +344,12 @@ def test_sweep_stub_is_not_attempted(capsys, answer):
 @pytest.mark.parametrize(
     "answer, message",
     [
-        ((False, False, GAP_RATIO), "gap_grows is False, but the χ² gaps"),
-        ((True, True, GAP_RATIO), "it falls from ratio 16 to 32"),
+        ((False, False, GAP_RATIO), "gap_grows = False is not what the sweep shows"),
+        ((True, True, GAP_RATIO), "distance_grows = True is not what the sweep shows"),
         ((True, False, 1 / GAP_RATIO), "It is the inverse of the reference"),
-        ((True, False, 4451.4 * 1.2), "gap_ratio is 5341.68; the reference is 4451.41"),
+        ((True, False, 4451.4 * 1.2), "gap_ratio = 5341.68 is too large, by 10 to 50 %."),
         ((True, False, 0.701 / 0.0159), "the gap at ratio 64 divided by the gap at ratio 2"),
-        (("yes", False, GAP_RATIO), "gap_grows should be True or False"),
+        (("maybe", False, GAP_RATIO), "gap_grows should be True or False"),
         ((True, False, "many"), "gap_ratio should be one real number, got 'many'"),
     ],
     ids=[
@@ -356,13 +366,16 @@ def test_sweep_wrong_answers_are_named(capsys, answer, message):
     ok, out = _run(capsys, ch06.check_anisotropy_sweep, *answer)
     assert ok is False and "Exercise 6.4 — not yet" in out
     assert message in out
+    assert "→" not in out and "4451" not in out  # the sweep's numbers are the last hint
+    if answer[:2] == (True, True):
+        assert "it falls from ratio 16 to 32" in _hints(capsys, "6.4")
 
 
 # --------------------------------------------------------------------------- the chapter
 def test_chapter_has_the_exercises_the_checks_belong_to():
     nb = json.loads(CHAPTER.read_text(encoding="utf-8"))
     found = exercises(nb, str(CHAPTER))
-    assert [(e["id"], e["kind"]) for e in found] == [
+    assert [(e["id"], e["kind"]) for e in found if e["kind"] != "derive"] == [
         ("6.1", "implement"),
         ("6.2", "implement"),
         ("6.3", "predict"),
@@ -372,4 +385,4 @@ def test_chapter_has_the_exercises_the_checks_belong_to():
     for name in ("check_frame_i", "check_phase2_edge", "check_closer", "check_anisotropy_sweep"):
         assert sum(f"ch06.{name}(" in s for s in sources) == 1
     for e in found:
-        assert f'assert passed("{e["id"]}")' in sources
+        assert solution_check_source(e["id"]) in sources

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from lagolib import closed_form as cf
-from lagolib.exercises import ch07, passed, reset
+from lagolib.exercises import ch07, hint, passed, reset
 
 
 @pytest.fixture(autouse=True)
@@ -22,6 +22,13 @@ def run(capsys, check, *args):
     """``(result, printed text)`` of one check."""
     ok = check(*args)
     return ok, capsys.readouterr().out
+
+
+def hints(capsys, exercise):
+    """Every hint level of ``exercise``'s last "not yet", as ``hint`` prints them."""
+    for _ in range(4):
+        hint(exercise)
+    return capsys.readouterr().out
 
 
 # ------------------------------------------------------------------------- 7.1 sincos error
@@ -287,8 +294,8 @@ def test_closed_form_gap_stub_is_not_attempted(capsys, stub):
     "wrong, message",
     [
         ("below 1", "nothing is below it"),
-        ("1 to 1.05", "when Ω is a multiple of I"),
-        ("1.05 to 2", "The gap is larger than that"),
+        ("1 to 1.05", "prediction = '1 to 1.05' is not the band the ratio falls in."),
+        ("1.05 to 2", "prediction = '1.05 to 2' is not the band the ratio falls in."),
         ("maybe", "prediction should be one of"),
         (3.0, "prediction should be one of"),
         (np.array([1.0, 2.0]), "(a string)"),
@@ -298,6 +305,13 @@ def test_closed_form_gap_wrong_answers_are_diagnosed(capsys, wrong, message):
     ok, out = run(capsys, ch07.check_closed_form_gap, wrong)
     assert ok is False and not passed("7.3")
     assert "Exercise 7.3 — not yet" in out and message in out
+    assert "3.075" not in out and "369" not in out  # the computed χ² are the last hint
+    levels = hints(capsys, "7.3")
+    if isinstance(wrong, str) and wrong == "1 to 1.05":
+        assert "hint 2 of 3: '1 to 1.05' is what happens when Ω is a multiple of I" in levels
+    if isinstance(wrong, str) and wrong == "1.05 to 2":
+        assert "hint 2 of 3: The gap is larger than that" in levels
+        assert "closed form / optimum = 3.075 (above 2)" in levels
 
 
 def test_closed_form_gap_bands():
@@ -330,8 +344,8 @@ def test_noise_gap_stub_is_not_attempted(capsys, stub):
     "wrong, message",
     [
         ((0.2, "ratio"), "at σ_θ = 0.2 the closed form's χ² is 2.134 times"),
-        ((0.0125, "ratio"), "2.292 times the optimum's, not the smallest"),
-        ((0.05, "level"), "with σ_θ = σ_xy the ratio stays 1.000000 at σ = 0.0125"),
+        ((0.0125, "ratio"), "2.292 times the optimum's, not the smallest ratio in the sweep."),
+        ((0.05, "level"), "what_decides = 'level' is not what the two sweeps show."),
         ((0.07, "ratio"), "should be one of the swept σ_θ"),
         ((0.05, "noise"), "what_decides should be one of"),
         ((0.05, np.array([1, 2])), "(a string)"),
@@ -342,3 +356,7 @@ def test_noise_gap_wrong_answers_are_diagnosed(capsys, wrong, message):
     ok, out = run(capsys, ch07.check_noise_gap, *wrong)
     assert ok is False and not passed("7.4")
     assert "Exercise 7.4 — not yet" in out and message in out
+    assert "1.0000" not in out  # the smallest ratio (at the answer) is the last hint
+    if isinstance(wrong[1], str) and wrong[1] == "level":
+        levels = hints(capsys, "7.4")
+        assert "with σ_θ = σ_xy the ratio stays 1.000000 at σ = 0.0125" in levels

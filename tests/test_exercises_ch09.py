@@ -12,7 +12,7 @@ import pytest
 
 import lagolib
 from lagolib import certify, simulate
-from lagolib.exercises import NOT_ATTEMPTED, ch09, passed, reset
+from lagolib.exercises import NOT_ATTEMPTED, ch09, hint, passed, reset
 
 
 @pytest.fixture(autouse=True)
@@ -26,6 +26,13 @@ def _run(capsys, check, *answer):
     ok = check(*answer)
     out = capsys.readouterr().out
     return ok, out
+
+
+def _hints(capsys, exercise):
+    """Every hint level of ``exercise``'s last "not yet", as ``hint`` prints them."""
+    for _ in range(4):
+        hint(exercise)
+    return capsys.readouterr().out
 
 
 # --------------------------------------------------------------------------- 9.1
@@ -188,14 +195,19 @@ def test_certificate_reading_states_the_gap_rule(capsys, manhattan_points):
     cQ = certify.certify(p, Q)
     ok, out = _run(capsys, ch09.check_certificate_reading, "P", -3192.36, p, P, Q)
     assert ok is False
+    assert "certified_point = 'P' is not what the two certificates say." in out
+    assert "certified True" not in out and "-3192" not in out  # the verdicts: the last hint
+    levels = _hints(capsys, "9.2").splitlines()
+    first = levels[0]
+    assert "gap" in first and "Σλ + n·min(λ_min, 0)" in first and "2nη₀" in first
+    assert "Q" not in first.split(":", 1)[1] and "−7" not in first
     assert (
         "P: certified False, λ_min -7.72195, lower bound -3192.36, gap 669 (tolerance 0.000549)"
-        in out
+        in levels[2]
     )
-    assert f"Q: certified True, λ_min > −η (not computed), lower bound {cQ.lower_bound:.6g}" in out
-    hint = out.split("Hint:", 1)[1]
-    assert "gap" in hint and "Σλ + n·min(λ_min, 0)" in hint and "2nη₀" in hint
-    assert "Q" not in hint and "P" not in hint and "−7" not in hint
+    assert f"Q: certified True, λ_min > −η (not computed), lower bound {cQ.lower_bound:.6g}" in (
+        levels[2]
+    )
 
 
 @pytest.mark.parametrize("answer", [(..., -3192.36), ("Q", ...), (None, None)])
@@ -207,13 +219,13 @@ def test_certificate_reading_stub_is_not_attempted(capsys, manhattan_points, ans
 @pytest.mark.parametrize(
     "choice, bound, message",
     [
-        ("P", -3192.36, "you predicted 'P', but P: certified False, λ_min -7.72195"),
-        ("both", -3192.36, "you predicted 'both'"),
+        ("P", -3192.36, "certified_point = 'P' is not what the two certificates say."),
+        ("both", -3192.36, "certified_point = 'both' is not what"),
         ("Q", 668.613587, "that is Σλ = f(P) itself"),
         ("Q", 668.613587 - 7.721953, "Σλ + λ_min — the eigenvalue counts once per pose"),
         ("Q", 668.613587 + 500 * 7.721953, "the sign of n·λ_min is flipped"),
         ("Q", 668.613587 - 1000 * 7.721953, "you multiplied by 2n; n = 500 poses"),
-        ("Q", -3000.0, "lower_bound_P is -3000; the reference is -3192.36"),
+        ("Q", -3000.0, "lower_bound_P = -3000 is too large, by less than 10 %."),
         ("R", -3192.36, "certified_point should be one of ['P', 'Q', 'both', 'neither'], got 'R'"),
     ],
     ids=["P", "both", "f", "no-n", "sign", "2n", "misread", "unknown"],
@@ -224,6 +236,7 @@ def test_certificate_reading_wrong_answers_are_named(
     ok, out = _run(capsys, ch09.check_certificate_reading, choice, bound, *manhattan_points)
     assert ok is False and not passed("9.2")
     assert "Exercise 9.2 — not yet" in out and message in out
+    assert "3192.36" not in out or bound == -3192.36  # P's bound is never told
 
 
 def test_certificate_reading_odd_answer_does_not_raise(capsys, manhattan_points):
@@ -265,18 +278,21 @@ def test_noise_sweep_stub_is_not_attempted(capsys, answer):
 @pytest.mark.parametrize(
     "answer, message",
     [
-        ((0.4, 1), "first_uncertified is 0.4; the certified fractions are σθ 0.2: 1.00"),
-        ((0.45, 1), "first_uncertified is 0.45; the reference is 0.5"),
-        ((0.5, 0), "not_tight is 0: that is 1 fewer than the reference"),
-        ((0.5, 2), "not_tight is 2: that is 1 more than the reference"),
-        ((0.5, "one"), "not_tight should be a whole number, got 'one'"),
+        ((0.4, 1), "first_uncertified = 0.4: at that σθ every world is certified."),
+        ((0.45, 1), "first_uncertified = 0.45 is not one of the swept σθ (0.2, 0.3, 0.4, 0.5)."),
+        ((0.5, 0), "not_tight = 0 is too small."),
+        ((0.5, 2), "not_tight = 2 is too large."),
+        ((0.5, "one"), "not_tight should be a whole number (how many worlds), got 'one'"),
+        # review of issue 24: True for not_tight — the question is a count, and says so
+        ((0.5, True), "got True (a bool): the question is how many worlds, not whether"),
     ],
-    ids=["sigma-before", "sigma-off-grid", "count-low", "count-high", "count-word"],
+    ids=["sigma-before", "sigma-off-grid", "count-low", "count-high", "count-word", "count-bool"],
 )
 def test_noise_sweep_wrong_answers_are_named(capsys, answer, message):
     ok, out = _run(capsys, ch09.check_noise_sweep, *answer)
     assert ok is False and not passed("9.3")
     assert "Exercise 9.3 — not yet" in out and message in out
+    assert "0.75" not in out  # the certified fractions are the last hint
 
 
 def test_noise_sweep_odd_answer_does_not_raise(capsys):

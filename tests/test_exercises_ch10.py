@@ -13,7 +13,7 @@ import pytest
 
 import lagolib
 from lagolib import frontend, scan_matching, se2, simulate, uncertainty
-from lagolib.exercises import NOT_ATTEMPTED, ch10, passed, reset
+from lagolib.exercises import NOT_ATTEMPTED, ch10, hint, passed, reset
 from lagolib.gauss_newton import edge_jacobians
 
 
@@ -28,6 +28,13 @@ def _run(capsys, check, *answer):
     ok = check(*answer)
     out = capsys.readouterr().out
     return ok, out
+
+
+def _hints(capsys, exercise):
+    """Every hint level of ``exercise``'s last "not yet", as ``hint`` prints them."""
+    for _ in range(4):
+        hint(exercise)
+    return capsys.readouterr().out
 
 
 # --------------------------------------------------------------------------- 10.1
@@ -240,8 +247,8 @@ def test_gate_prediction_stub_is_not_attempted(capsys, gate_world, answer):
         (CANDIDATES, (True, True, True, False), "you took χ²'s quantile for 3 degrees of freedom"),
         (CANDIDATES, (True, True, False, True), "you divided by σ instead of σ²"),
         ([42, 2, 3, 44], (True, False, False, False), "you admitted exactly the candidates closer"),
-        (CANDIDATES, (True, False, False, False), "candidate(s) B is not right."),
-        (CANDIDATES, (False, True, True, True), "candidate(s) A, C, D are not right."),
+        (CANDIDATES, (True, False, False, False), "1 of your 4 answers is not right."),
+        (CANDIDATES, (False, True, True, True), "3 of your 4 answers are not right."),
     ],
     ids=["no-overlap", "chi2-3", "sigma", "distance", "one", "three"],
 )
@@ -250,7 +257,9 @@ def test_gate_prediction_wrong_answers_are_named(capsys, gate_world, candidates,
     ok, out = _run(capsys, ch10.check_gate_prediction, answer, chain, 79, candidates, RULES, x)
     assert ok is False and not passed("10.2")
     assert "Exercise 10.2 — not yet: " in out and message in out
-    assert "The gate: A: d² = " in out  # the verdicts are printed with a wrong answer too
+    # which candidate is wrong, and the gate's verdicts, are the hints' business
+    assert "A: d² =" not in out and "→ admitted" not in out and "candidate B" not in out
+    assert "hint 3 of 3: the check's gate: A: d² = " in _hints(capsys, "10.2")
 
 
 @pytest.mark.parametrize(
@@ -309,9 +318,10 @@ def test_heading_sweep_wrong_answers_are_named(capsys):
         ((0.3, closures), "smallest_sigma is 0.3°, where the map breaks"),
         ((3.0, closures), "where the map holds (ATE"),
         ((math.radians(1.0), closures), "that is a σ in radians"),
-        ((0.5, closures), "smallest_sigma is 0.5; the reference is 1"),
+        ((0.5, closures), "smallest_sigma = 0.5 is not one of the swept σ (0.3, 1, 3 degrees)."),
         ((1.0, int(sw["accepted"][1])), "That is the count where the map holds"),
-        ((1.0, closures + 3), "that is 3 more than the reference"),
+        ((1.0, closures + 3), f"closures_when_broken = {closures + 3} is too large."),
+        ((1.0, True), "the question is how many loop closures, not whether"),
         ((1.0, "two"), "closures_when_broken should be a whole number"),
         (([1.0], closures), "smallest_sigma should be one real number, got a list"),
     ]

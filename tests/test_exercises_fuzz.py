@@ -45,6 +45,7 @@ from lagolib.exercises._coerce import (
     Shape,
     Tuple,
 )
+from lagolib.exercises._derive import Formula
 from lagolib.gauss_newton import edge_jacobians
 from lagolib.metrics import constraint_satisfaction
 from lagolib.sgd import sgd
@@ -366,6 +367,17 @@ REFERENCE = {
     "ch10.check_icp_step": lambda: dict(icp_step=step_ok),
     "ch10.check_gate_prediction": _gate_prediction,
     "ch10.check_heading_sweep": _heading_sweep,
+    "ch02.check_jacobian_entry": lambda: dict(
+        de_x_dtheta_i="-sin(theta_i + theta_z)*(x_j - x_i) + cos(theta_i + theta_z)*(y_j - y_i)"
+    ),
+    "ch05.check_blue_variance": lambda: dict(var_theta2="c*(a + b)/(a + b + c)"),
+    "ch06.check_world_information": lambda: dict(W_xy="(a - b)*sin(theta)*cos(theta)"),
+    "ch07.check_gradient_entry": lambda: dict(
+        dF_dc_i="2*((c_i*(x_j - x_i) + s_i*(y_j - y_i) - x_z)*(x_j - x_i)"
+        " + (-s_i*(x_j - x_i) + c_i*(y_j - y_i) - y_z)*(y_j - y_i)"
+        " + (c_j*c_i + s_j*s_i - c_z)*c_j + (s_j*c_i - c_j*s_i - s_z)*s_j)"
+    ),
+    "ch09.check_multiplier_formula": lambda: dict(lambda_1="w*(1 - cos(theta_z + phi_0 - phi_1))"),
 }
 
 
@@ -420,7 +432,7 @@ _SCALAR_WRONG = {
     "numpy bool": np.bool_,
     "list of one": lambda r: [r],
     "tuple of one": lambda r: (r,),
-    "array of one": lambda r: np.array([r]),
+    "array of two": lambda r: np.array([r, r]),
     "0-d object array": lambda r: np.array(r, dtype=object),
     "dict": lambda r: {"value": r},
     "set": lambda r: {r},
@@ -447,7 +459,7 @@ WRONG_KINDS = {
         "bytes": lambda b: str(b).encode(),
         "complex": complex,
         "list of one": lambda b: [b],
-        "array of one": lambda b: np.array([b]),
+        "array of two": lambda b: np.array([b, b]),
         "0-d object array": lambda b: np.array(b, dtype=object),
         "dict": lambda b: {"value": b},
     },
@@ -501,6 +513,22 @@ WRONG_KINDS = {
         "sparse": lambda a: sp.csr_matrix(np.atleast_2d(a)),  # only where dense is asked for
         "generator": lambda a: (x for x in a),
     },
+    Formula: {
+        "bytes": lambda f: f.encode(),
+        "list of one": lambda f: [f],
+        "tuple of one": lambda f: (f,),
+        "dict": lambda f: {"answer": f},
+        "set": lambda f: {f},
+        "bool": lambda f: True,
+        "array of one": lambda f: np.array([1.0]),
+        "complex": lambda f: 1 + 2j,
+        "nan": lambda f: float("nan"),
+        "sympy matrix": lambda f: sympy.Matrix([sympy.sympify(1)]),
+        "equation string": lambda f: f"W = {f}",
+        "unknown symbol": lambda f: f"({f}) + q",
+        "unclosed parenthesis": lambda f: f"({f}",
+        "attribute": lambda f: f"({f}).evalf()",
+    },
     Tuple: {
         "dict": lambda t: dict(enumerate(t)),
         "string": lambda t: str(t),
@@ -518,14 +546,18 @@ def _right_forms(kind, value):
     if isinstance(kind, Real):
         forms = [np.float64(value), np.array(value), sympy.Float(value)]
         forms += [fractions.Fraction(value), decimal.Decimal(value)]
+        # one number in an array (np.mean(x, keepdims=True), a (1, 1) product): the number
+        forms += [np.array([value]), np.array([[value]], dtype=np.float32).astype(float)]
         return forms + ([int(value)] if float(value).is_integer() else [])
     if isinstance(kind, Int):
         return [np.int64(value), float(value), np.float64(value), np.array(value)] + [
             sympy.Integer(value),
             np.int32(value),
+            np.array([value]),
         ]
     if isinstance(kind, Bool):
-        return [np.bool_(value), np.array(value)]
+        # a yes/no question: True/False of any type, or the words yes and no
+        return [np.bool_(value), np.array(value), np.array([value]), "yes" if value else "No"]
     if isinstance(kind, Choice):
         return [np.str_(value), f"  {value.upper()}  ", np.array(value)]
     if isinstance(kind, Shape):
@@ -548,6 +580,10 @@ def _right_forms(kind, value):
         if kind.sparse:
             forms.append(sp.csr_matrix(np.atleast_2d(a)))
         return forms
+    if isinstance(kind, Formula):
+        expr = kind.coerce(value)
+        return [expr, sympy.expand(expr), sympy.factor(expr), np.str_(value), np.array(value),
+                f"  {value}  ", value.replace("theta", "θ")]
     if isinstance(kind, Tuple):
         items = list(value)
         forms = [items] + [
@@ -556,6 +592,8 @@ def _right_forms(kind, value):
         ]
         if len({np.shape(v) for v in items}) == 1:
             forms.append(np.array(items))
+        if all(isinstance(k, (Real, Int)) for k in kind.items):  # n numbers as a row, a column
+            forms += [np.array([items], dtype=float), np.array(items, dtype=float)[:, None]]
         return forms
     raise AssertionError(f"no right forms for {kind!r}")
 

@@ -10,7 +10,7 @@ import lagolib
 # each module may import only from modules in earlier layers (or its own layer's helpers below it)
 LAYERS = [
     ["errors"],
-    ["files"],
+    ["files", "tables"],
     ["se2"],
     ["checks"],
     ["graph"],
@@ -27,6 +27,7 @@ LAYERS = [
     ["uncertainty"],
     ["frontend"],
     ["book"],
+    ["grading"],
     ["cli"],
 ]
 RANK = {name: k for k, layer in enumerate(LAYERS) for name in layer}
@@ -53,6 +54,8 @@ def test_module_imports_only_earlier_layers(module):
 def test_exercises_are_on_top():
     """lagolib.exercises (the book's checks) may use all of lagolib; nothing in lagolib uses it."""
     for path in ROOT.glob("*.py"):
+        if path.name == "grading.py":  # grading runs the checks (by name, in a process of its own)
+            continue
         tree = ast.parse(path.read_text())
         for node in ast.walk(tree):
             names = []

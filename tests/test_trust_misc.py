@@ -431,6 +431,9 @@ NOT_SHOWN = {
     ("sgd.py", "anchor="): "the command passes no anchor",
     ("simulate.py", "noiseless="): "the command simulates nothing",
     ("datasets.py", "lagolib.datasets.path({name!r})"): "a template of load_or_example's note",
+    ("grading.py", "_lagolib_grader_capture"): "code the grader runs in a student's kernel",
+    ("tables.py", "lagolib-table"): "HTML attributes, not advice",
+    ("tables.py", "text-align:right"): "HTML attributes, not advice",
 }
 
 

@@ -471,7 +471,9 @@ def test_student_copies_command_needs_force(small_book, tmp_path, capsys):
     out = tmp_path / "copies"
     argv = ["student-copies", str(out), "--book", str(small_book)]
     assert lbook.main(argv) == 0
-    assert capsys.readouterr().out.strip() == f"wrote 3 chapters with 0 exercises to {out}"
+    assert capsys.readouterr().out.strip().splitlines()[0] == (
+        f"wrote student copies of 3 chapters with 0 exercises to {out}"
+    )
     assert lbook.main(argv) == 0
     assert "wrote 0 of 3 chapters" in capsys.readouterr().out
     (out / "01_ch.ipynb").write_text("{}", encoding="utf-8")

@@ -62,16 +62,18 @@ def kernel_env(variant, cache, base=None):
     Returns
     -------
     dict
-        ``base`` with matplotlib left to the kernel (``MPLBACKEND`` removed: ipykernel then draws
-        inline, where ``MPLBACKEND=Agg`` would silently render nothing), BLAS held to one thread
-        (on a loaded machine threads fighting for the cores made a cell 50x slower), and the
-        variant's data settings.
+        ``base`` with the book's own asserts strict (``LAGOLIB_BOOK_STRICT=1``, see
+        :class:`lagolib.exercises.bookkeeping`), matplotlib left to the kernel (``MPLBACKEND``
+        removed: ipykernel then draws inline, where ``MPLBACKEND=Agg`` would silently render
+        nothing), BLAS held to one thread (on a loaded machine threads fighting for the cores
+        made a cell 50x slower), and the variant's data settings.
     """
     if variant not in ("online", "offline"):
         raise ValueError(f"kernel_env: variant must be 'online' or 'offline', not {variant!r}")
     env = dict(os.environ if base is None else base)
     env.pop("MPLBACKEND", None)
     env.update({k: "1" for k in THREAD_VARS})
+    env["LAGOLIB_BOOK_STRICT"] = "1"  # the book's own asserts fail the run (bookkeeping())
     if variant == "offline":
         env.pop("LAGOLIB_DATA", None)
         env["LAGOLIB_OFFLINE"] = "1"

@@ -3,7 +3,8 @@
 A chapter imports its module, e.g. ``from lagolib.exercises import ch06``, and each exercise cell is
 followed by a check such as ``ch06.check_phase1(phase1)``.  A check compares the answer with
 lagolib's own implementation, prints one line that starts with ``Exercise <id>`` — *correct*, *not
-yet* (what is wrong, by how much, and a hint) or *not attempted yet* (the stub is still as given) —
+yet* (what is wrong and by how much, never the answer; ``hint(id)`` gives hints, one level per
+call) or *not attempted yet* (the stub is still as given) —
 and returns ``True`` or ``False``; it never raises on a wrong answer.  A check says correct only for
 an answer of the right kind: each declares the kind of its answers (``Int()``, ``Real()``,
 ``Bool()``, ``Choice(...)``, ``Shape(2)``, ``RealArray(...)``, ``Function(returns=...)``, see
@@ -17,9 +18,11 @@ The conventions that tie a chapter's exercise, solution, check and student stub 
 
 >>> from lagolib.exercises import compare_int, verdict
 >>> verdict("0.1", compare_int(4, 5, name="the number of chords"), hint="count the chords")
-Exercise 0.1 — not yet: the number of chords is 4: that is 1 fewer than the reference.
-    Hint: count the chords
+Exercise 0.1 — not yet: the number of chords = 4 is too small.
+    Stuck? hint("0.1") gives a hint (1 level, one more per call).
 False
+>>> hint("0.1")
+Exercise 0.1 — hint 1 of 1: count the chords
 >>> verdict("0.1", compare_int(..., 5))  # doctest: +ELLIPSIS
 Exercise 0.1 — not attempted yet: replace the placeholder (`...`) in the cell above with ...
 False
@@ -48,17 +51,22 @@ from lagolib.exercises._coerce import (
 )
 from lagolib.exercises._feedback import (
     NOT_ATTEMPTED,
+    STRICT_ENV,
+    bookkeeping,
     call_student,
     check,
     compare_array,
     compare_choice,
     compare_int,
     compare_number,
+    hint,
+    hints_enabled,
     is_placeholder,
     not_attempted,
     passed,
     reset,
     results,
+    set_hints,
     verdict,
 )
 
@@ -67,6 +75,7 @@ CHAPTERS = ("ch00", "ch01", "ch02", "ch03", "ch04", "ch05", "ch06", "ch07", "ch0
 __all__ = [
     "CHAPTERS",
     "NOT_ATTEMPTED",
+    "STRICT_ENV",
     "Bool",
     "Choice",
     "Function",
@@ -82,17 +91,21 @@ __all__ = [
     "as_real_array",
     "as_shape",
     "as_text",
+    "bookkeeping",
     "call_student",
     "check",
     "compare_array",
     "compare_choice",
     "compare_int",
     "compare_number",
+    "hint",
+    "hints_enabled",
     "is_placeholder",
     "not_attempted",
     "passed",
     "reset",
     "results",
+    "set_hints",
     "verdict",
     *CHAPTERS,
 ]

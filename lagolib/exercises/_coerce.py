@@ -22,11 +22,12 @@ A kind accepts every form of the right kind a student naturally writes, and refu
 ===========  ===================================================  =====================================
 kind         accepted                                             refused ("not yet", naming the kind)
 ===========  ===================================================  =====================================
-Real         int, float, numpy integers and floats, 0-d numeric   bool; str (also ``"3.0"``); bytes;
-             arrays, Fraction, Decimal, real sympy numbers        complex (also ``3+0j``); lists, arrays,
-                                                                  dicts; NaN and ±inf
+Real         int, float, numpy integers and floats, numeric       bool; str (also ``"3.0"``); bytes;
+             arrays holding one entry (0-d, (1,), (1, 1)),        complex (also ``3+0j``); lists,
+             Fraction, Decimal, real sympy numbers                longer arrays, dicts; NaN and ±inf
 Int          the same, when whole (``5.0`` is 5)                  as Real, and ``5.5``
-Bool         ``True``/``False``, ``numpy.bool_``, 0-d bool array  ``0``/``1``, ``"True"``, anything else
+Bool         ``True``/``False``, ``numpy.bool_``, a bool array    ``0``/``1``, ``"True"``, anything else
+             holding one entry; ``"yes"``/``"no"`` (any case)
 Choice       a str (``numpy.str_``, a 0-d text array)             bytes, numbers, lists, …
 Shape        a tuple, list or 1-d integer array of n whole        dicts, sets, str, bools, negative or
              numbers                                              fractional sizes, another length
@@ -35,7 +36,8 @@ RealArray    arrays of integer or float dtype; nested lists and   bool, complex,
              masked arrays with nothing masked; scipy.sparse      ragged nested lists; masked entries;
              only where the exercise allows it                    sparse matrices; NaN and ±inf
 Tuple        a tuple, list or array of exactly n items, each      other containers, another length
-             read as its own kind
+             read as its own kind (n numbers: also a row or a
+             column, shape (1, n) or (n, 1))
 ===========  ===================================================  =====================================
 
 An answer of a wrong kind raises :class:`WrongKind` inside the checks, which :func:`check` turns
@@ -52,6 +54,7 @@ import numpy as np
 
 __all__ = [
     "NOT_ATTEMPTED",
+    "YES_NO",
     "WrongKind",
     "Kind",
     "Real",
@@ -188,10 +191,27 @@ def describe(value) -> str:
 
 
 # ------------------------------------------------------------------------------ scalars
+def _one(value):
+    """A numpy array (or np.matrix) holding exactly one entry, as a 0-d array; else ``value``.
+
+    ``np.mean(x, keepdims=True)``, ``A @ b`` of shapes (1, k) and (k, 1), a (1,) slice: numpy
+    hands out one number in an array often, and it is the number all the same.
+    """
+    if (
+        isinstance(value, np.ndarray)
+        and value.ndim > 0
+        and value.size == 1
+        and not (np.ma.isMaskedArray(value) and np.ma.getmaskarray(value).any())
+    ):
+        return np.asarray(value).reshape(())
+    return value
+
+
 def _real(value) -> float:
     """``value`` as a float if it is one real number of any numeric type, else raise _Bad."""
     if isinstance(value, (bool, np.bool_)):
         raise _Bad(describe(value))
+    value = _one(value)
     if np.ma.isMaskedArray(value) and value.ndim == 0 and not np.ma.getmaskarray(value).any():
         value = np.asarray(value.data)  # one number, not masked
     if isinstance(value, (numbers.Real, decimal.Decimal)) and not _is_sympy(value):
@@ -229,6 +249,7 @@ def _int(value) -> int:
     """``value`` as an int if it is a whole number (``5`` or ``5.0``), else raise _Bad."""
     if isinstance(value, (bool, np.bool_)):
         raise _Bad(describe(value))
+    value = _one(value)
     if isinstance(value, numbers.Integral) and not _is_sympy(value):
         return int(value)
     if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iu":
@@ -295,26 +316,60 @@ class Real(Kind):
 
 
 class Int(Kind):
-    """A whole number; read as a Python int (``5.0`` is 5; ``True`` and ``5.5`` are refused)."""
+    """A whole number; read as a Python int (``5.0`` is 5; ``True`` and ``5.5`` are refused).
+
+    Parameters
+    ----------
+    count_of : str, optional
+        What the number counts (``"worlds"``), when it is a count: an answer True or False is
+        then told that the question is how many, not whether.
+    """
 
     what = "a whole number"
     hint = "write a whole number, e.g. 3: not True/False, not in quotes, not in a list."
 
+    def __init__(self, *, count_of: str | None = None):
+        self.count_of = count_of
+        if count_of:
+            self.what = f"a whole number (how many {count_of})"
+
     def parse(self, value):
+        if self.count_of and isinstance(_one(value), (bool, np.bool_)):
+            raise _Bad(
+                f"{describe(_one(value))}: the question is how many {self.count_of}, not "
+                "whether there are any",
+                f"count the {self.count_of} and write the count, e.g. 3.",
+            )
         return _int(value)
 
 
+#: the words a yes/no question also accepts (any case, spaces around them ignored)
+YES_NO = {"yes": True, "no": False}
+
+
 class Bool(Kind):
-    """``True`` or ``False`` (also numpy's); read as a Python bool.  ``0``/``1`` are refused."""
+    """``True`` or ``False`` (also numpy's, and a one-entry bool array), or the words ``"yes"`` /
+    ``"no"`` (any case) — a yes/no question; read as a Python bool.  ``0``/``1`` and the string
+    ``"True"`` are refused (a quoted ``"False"`` is true in an ``if``)."""
 
     what = "True or False"
-    hint = "write True or False, without quotes."
+    hint = 'write True or False without quotes (or the word "yes" or "no").'
 
     def parse(self, value):
+        value = _one(value)
         if isinstance(value, (bool, np.bool_)):
             return bool(value)
         if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind == "b":
             return bool(value)
+        if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind == "U":
+            value = str(value[()])
+        if isinstance(value, str) and value.strip().lower() in YES_NO:
+            return YES_NO[value.strip().lower()]
+        if isinstance(value, str) and value.strip().lower() in ("true", "false"):
+            raise _Bad(
+                f"{describe(value)}: True and False are written without quotes",
+                "write True or False without quotes (or the word \"yes\" or \"no\").",
+            )
         raise _Bad(describe(value))
 
 
@@ -336,7 +391,8 @@ class Choice(Kind):
     """One of ``choices``, written as a string; read as a str: the choice itself when the answer
     is one of them as :func:`normalize_choice` compares (``" Gauss–Newton"`` is
     ``"Gauss-Newton"``), otherwise the string as written (which choice it is, the check's
-    :func:`~lagolib.exercises.compare_choice` says)."""
+    :func:`~lagolib.exercises.compare_choice` says).  When the choices are ``"yes"`` and ``"no"``,
+    ``True`` and ``False`` are those answers too."""
 
     hint = "write one of the listed answers as a string, in quotes."
 
@@ -347,6 +403,11 @@ class Choice(Kind):
     def parse(self, value):
         if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind == "U":
             value = str(value[()])
+        if isinstance(value, (bool, np.bool_)):
+            # a yes/no question answered True/False: the same answer
+            words = {normalize_choice(c): c for c in self.choices if isinstance(c, str)}
+            if set(words) == set(YES_NO):
+                return words["yes" if value else "no"]
         if not isinstance(value, str):
             raise _Bad(describe(value))
         text = normalize_choice(value)
@@ -516,6 +577,15 @@ class Tuple(Kind):
     def _items(self, value):
         if isinstance(value, (tuple, list)):
             items = list(value)
+        elif (
+            isinstance(value, np.ndarray)
+            and value.ndim == 2
+            and 1 in value.shape
+            and value.size == len(self.items)
+            and value.dtype.kind != "O"
+            and all(isinstance(k, (Real, Int, Bool)) for k in self.items)
+        ):
+            items = list(np.asarray(value).ravel())  # a row or a column of numbers: the numbers
         elif isinstance(value, np.ndarray) and value.ndim >= 1 and value.dtype.kind != "O":
             items = list(value)
         else:

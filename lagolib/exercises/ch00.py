@@ -70,8 +70,8 @@ def check_notation(n_unknown, A_shape, state_length):
     if wrong is not None:
         if n_unknown == nodes:
             wrong = (
-                f"n_unknown = {nodes} counts the anchor: Carlone's graph has n + 1 = {nodes} "
-                "nodes, and n counts the poses to estimate."
+                f"n_unknown = {nodes} counts every pose: Carlone's n leaves the anchor out (his "
+                "graph has n + 1 nodes, and its anchor's pose is known)."
             )
         problems.append(wrong)
     shape = A_shape  # read by @check as a tuple of two ints
@@ -87,7 +87,11 @@ def check_notation(n_unknown, A_shape, state_length):
                 "a column per edge."
             )
         else:
-            problems.append(f"A_shape = {shape}; count A's rows (poses) and columns (edges).")
+            wrong_dims = [w for w, a, b in zip(("rows", "columns"), shape, A) if a != b]
+            problems.append(
+                f"A_shape = {shape}: its number of {' and of '.join(wrong_dims)} is not A's "
+                "(a row per unknown pose, a column per edge)."
+            )
     wrong = compare_int(state_length, 3 * nodes, name="state_length")
     if wrong is not None:
         if state_length == 3 * n:
@@ -102,7 +106,12 @@ def check_notation(n_unknown, A_shape, state_length):
         return verdict(
             ex,
             " ".join(problems),
-            hint="the preface's notation table has a row on n vs n + 1 nodes and on the state.",
+            hint=(
+                "the preface's notation table has a row on n vs n + 1 nodes and on the state.",
+                "Carlone's n counts the poses to estimate, not the anchor; his A has one row per "
+                "estimated pose and one column per edge; the notes' x stacks (x, y, θ) of every "
+                "pose, x_0 included.",
+            ),
         )
     return verdict(
         ex,

@@ -29,6 +29,7 @@ from lagolib.exercises._feedback import (
     check,
     compare_array,
     compare_choice,
+    compare_number,
     is_placeholder,
     verdict,
 )
@@ -122,8 +123,12 @@ def _edge_mistakes(p_i, p_j, z):
 
 
 _EDGE_HINT = (
+    "print your edge_error and lagolib.residuals for one edge side by side (the chapter's cell "
+    "does) and look at which of x, y, θ differ.",
+    "e_ij = t2v(Z_ij⁻¹ (X_i⁻¹ X_j)): X_i⁻¹ X_j is pose j seen from pose i; Z_ij⁻¹ on the left "
+    "then compares it with the measurement, in the measurement's frame.",
     "build the three matrices X_i, X_j, Z_ij with se2.v2t, multiply them in the order of the "
-    "equation (Z_ij's inverse on the left), and turn the product back into (x, y, θ) with se2.t2v."
+    "equation (Z_ij's inverse on the left), and turn the product back into (x, y, θ) with se2.t2v.",
 )
 
 
@@ -164,7 +169,9 @@ def check_edge_error(edge_error) -> bool:
             if problem != NOT_ATTEMPTED:
                 problem += f"\n    (edge {k}: p_i = {args[0]}, p_j = {args[1]}, z = {args[2]})"
             return verdict(
-                ex, problem, hint="return a numpy array of 3 real numbers (x, y, θ) for one edge."
+                ex,
+                problem,
+                hint=("return a numpy array of 3 real numbers (x, y, θ) for one edge.", *_EDGE_HINT),
             )
         got[k] = value  # a wrong value is diagnosed below, on all edges together
 
@@ -181,18 +188,21 @@ def check_edge_error(edge_error) -> bool:
         worst = int(np.argmax(np.abs(got[:, 2] - expected[:, 2])))
         return verdict(
             ex,
-            f"your translations are right, but the angle of edge {worst} is {got[worst, 2]:.4f} "
-            f"rad where lagolib's is {expected[worst, 2]:.4f}: they differ by 2π. The error's "
-            "angle must be wrapped into (−π, π].",
-            hint="wrap θ_j − θ_i − θ_z with se2.wrap_angle, or take it from t2v of the matrix "
-            "product (t2v uses atan2, which wraps).",
+            f"your translations are right, but your angle of edge {worst} ({got[worst, 2]:.4f} "
+            "rad) differs from lagolib's by a whole turn, 2π. The error's angle must be wrapped "
+            "into (−π, π].",
+            hint=(
+                "which of your edges have headings near ±π? There θ_j − θ_i − θ_z leaves (−π, π].",
+                "wrap θ_j − θ_i − θ_z with se2.wrap_angle, or take it from t2v of the matrix "
+                "product (t2v uses atan2, which wraps).",
+            ),
         )
     if translation_ok and np.allclose(got[:, 2], np.degrees(expected[:, 2]), rtol=1e-7, atol=1e-7):
         return verdict(
             ex,
             "your translations are right, but your angles are in degrees: lagolib (and t2v, "
             "arctan2, se2.wrap_angle) works in radians.",
-            hint="leave the angle in radians, as t2v returns it.",
+            hint=("leave the angle in radians, as t2v returns it (no np.degrees).",),
         )
     for candidate, diagnosis in _edge_mistakes(p_i, p_j, z):
         if _matches(got, candidate):
@@ -261,7 +271,8 @@ def check_heading_noise(distance_ratio, growth_with_sigma) -> bool:
     lagolib's own seeded simulation of 4000 runs each, to 15 % (the student reads it off a few
     hundred runs; the expected value is close to √10), and ``growth_with_sigma`` — how the mean
     end distance grows with σ for small σ, one of :data:`GROWTH_WITH_SIGMA` — with the law that
-    the simulation at σ = 0.05 and 0.10 shows.  Prints the simulated numbers.
+    the simulation at σ = 0.05 and 0.10 shows.  Prints the simulated numbers with a right
+    answer; after a wrong one they are the last hint level (:func:`lagolib.exercises.hint`).
 
     Parameters
     ----------
@@ -288,25 +299,22 @@ def check_heading_noise(distance_ratio, growth_with_sigma) -> bool:
         growth_with_sigma, expected_growth, GROWTH_WITH_SIGMA, name="growth_with_sigma"
     )
     if problem is not None and not problem.startswith("growth_with_sigma should be one of"):
+        factor = {"linear": "2", "quadratic": "4", "square root": "√2 ≈ 1.41"}[growth_with_sigma]
         problem = (
-            f"growth_with_sigma is {growth_with_sigma!r}, but doubling σ multiplies the mean end "
-            f"distance by {d8_double / d8:.2f}: the simulation says {expected_growth!r}."
+            f"growth_with_sigma = {growth_with_sigma!r} is not what the simulation shows: with "
+            f"it, doubling σ would multiply the mean end distance by {factor}. Is that what "
+            "your table shows?"
         )
-        if expected_growth == "linear":
-            problem += (
-                " To first order the end position is a linear function of the small heading "
-                "errors, so their spread scales it directly."
-            )
     if problem is not None:
         problems.append(problem)
     r = distance_ratio  # read by @check as one finite real number
     if abs(r - ratio) > 0.15 * ratio:
-        problem = f"distance_ratio is {r:.3g}; the simulation gives {ratio:.2f}."
+        problem = compare_number(r, ratio, name="distance_ratio", rtol=0.15)
         if abs(r - 10.0) <= 1.5:
             problem += (
-                " That is the ratio of the numbers of steps. The heading errors are "
-                "independent, so they add in variance, not in size: their sum grows like the "
-                "square root of the number of steps."
+                " 10 is the ratio of the numbers of steps, as if the end distance grew in "
+                "proportion to them — but the heading errors are independent, and independent "
+                "errors partly cancel."
             )
         elif abs(r - 1.0) <= 0.15:
             problem += (
@@ -319,9 +327,15 @@ def check_heading_noise(distance_ratio, growth_with_sigma) -> bool:
     if problems:
         return verdict(
             ex,
-            " ".join(problems) + "\n    " + facts,
-            hint="compare the printed means of end_distance for 8 and for 80 steps at σ = 0.05, "
-            "and how they change from row to row as σ doubles.",
+            " ".join(problems),
+            hint=(
+                "compare the printed means of end_distance for 8 and for 80 steps at σ = 0.05, "
+                "and how they change from row to row as σ doubles.",
+                "independent heading errors add in variance, not in size: after N steps their "
+                "sum has the standard deviation σ√N; and while σ is small, the end position is "
+                "to first order a linear function of the heading errors.",
+                "the check's own simulation: " + facts,
+            ),
         )
     return verdict(ex, None, correct=facts)
 
@@ -364,10 +378,11 @@ def chi2_by_laps(max_laps=6, worlds=12, poses_per_lap=40):
 def check_chi2_laps(chi2_one_lap, growth) -> bool:
     """Exercise 1.3: how χ² at the odometry guess grows with the number of laps.
 
-    Computes :func:`chi2_by_laps` (12 seeded 6-lap square worlds), prints the mean χ² for 1 … 6
-    laps, and compares ``chi2_one_lap`` — the predicted χ² of a one-lap world at its odometry
-    guess — with the computed value (to 1e-6 absolute: it is zero up to rounding), and
-    ``growth`` — one of :data:`GROWTH_WITH_LAPS` — with the power law that the mean χ² of 2 and 6
+    Computes :func:`chi2_by_laps` (12 seeded 6-lap square worlds) — the mean χ² for 1 … 6 laps,
+    printed with a right answer and the last hint level after a wrong one — and compares
+    ``chi2_one_lap`` — the predicted χ² of a one-lap world at its odometry guess — with the
+    computed value (to 1e-6 absolute: it is zero up to rounding), and ``growth`` — one of
+    :data:`GROWTH_WITH_LAPS` — with the power law that the mean χ² of 2 and 6
     laps shows (χ² per lap after the first: constant → linear).
 
     Parameters
@@ -395,29 +410,34 @@ def check_chi2_laps(chi2_one_lap, growth) -> bool:
     value = chi2_one_lap  # read by @check as one finite real number
     if abs(value - mean[0]) > 1e-6:
         problems.append(
-            f"chi2_one_lap is {value:.4g}, but one lap has χ² = {mean[0]:.1e} at its odometry "
-            "guess. The odometry guess composes the odometric measurements, so every odometric "
-            "error is zero, and one lap has no loop closure."
+            f"chi2_one_lap = {value:.4g}: χ² is a sum of squares, it cannot be negative."
+            if value < 0
+            else f"chi2_one_lap = {value:.4g} is too large (the check allows 1e-6 for rounding)."
         )
     problem = compare_choice(growth, expected_growth, GROWTH_WITH_LAPS, name="growth")
     if problem is not None and not problem.startswith("growth should be one of"):
+        meaning = {
+            "constant": "every lap after the first would add nothing",
+            "linear": "every lap after the first would add about the same",
+            "quadratic": "every lap would add more than the one before",
+        }[growth]
         problem = (
-            f"growth is {growth!r}, but the computed mean χ² is {expected_growth!r} in the "
-            "number of laps after the first: "
-            + (
-                "each loop closure joins a pose to the same place one lap earlier, so its error is "
-                "the drift of one lap, not of the whole trajectory — every lap adds about the same."
-                if growth == "quadratic"
-                else "every further lap adds 40 loop closures, each violated by the drift of a lap."
-            )
+            f"growth = {growth!r} is not what the 12 simulated worlds show ({meaning})."
         )
     if problem is not None:
         problems.append(problem)
     if problems:
         return verdict(
             ex,
-            " ".join(problems) + "\n    " + facts,
-            hint="which edges does the odometry guess satisfy, and what does a loop closure compare?",
+            " ".join(problems),
+            hint=(
+                "which edges does the odometry guess satisfy, and what does a loop closure "
+                "compare?",
+                "the odometry guess composes the odometric measurements, so every odometric "
+                "error is zero there; a loop closure joins a pose to the same place one lap "
+                "earlier, so its error is the drift of one lap, not of the whole trajectory.",
+                "the check's own numbers: " + facts,
+            ),
         )
     return verdict(ex, None, correct=facts)
 
@@ -480,7 +500,8 @@ def check_toro_frames(same_isotropic, same_anisotropic) -> bool:
     anisotropic, rotated information (400 and 25 along a random direction per edge) — reads the
     matrices in the files, and compares the predictions ``same_isotropic`` / ``same_anisotropic``
     (True if the TORO file holds the same matrices as lagolib's g2o-convention ones, up to
-    rounding, 1e-9 relative) with what the files hold.  Prints the largest relative changes.
+    rounding, 1e-9 relative) with what the files hold.  The largest relative changes are printed
+    with a right answer, and are the last hint level after a wrong one.
 
     Parameters
     ----------
@@ -501,7 +522,7 @@ def check_toro_frames(same_isotropic, same_anisotropic) -> bool:
         f"relative to their largest translational entry: "
         f"isotropic {change_iso:.1e}, anisotropic {change_aniso:.2f}."
     )
-    problems = []
+    problems, whys = [], []
     for name, got, change, why_same, why_not in [
         (
             "same_isotropic",
@@ -516,21 +537,27 @@ def check_toro_frames(same_isotropic, same_anisotropic) -> bool:
             change_aniso,
             "",
             "the conversion G Ω Gᵀ, G = blockdiag(R(θ_z), 1), turns an anisotropic block's "
-            "principal axes by the measured angle θ_z, so the numbers in the file change.",
+            "principal axes by the measured angle θ_z, so its numbers change.",
         ),
     ]:
         expected = change <= 1e-9
         problem = compare_choice(got, expected, (True, False), name=name)
         if problem is not None and problem.endswith(WRONG_CHOICE):
-            problem = f"{name} is {got!r}, but the file's matrices " + (
-                f"are the same: {why_same}" if expected else f"differ: {why_not}"
-            )
+            problem = f"{name} = {got!r} is not what the TORO file holds."
+            whys.append(why_same if expected else why_not)
         if problem is not None:
             problems.append(problem)
     if problems:
         return verdict(
             ex,
-            " ".join(problems) + "\n    " + facts,
-            hint="what does the rotation G = blockdiag(R(θ_z), 1) do to a I₂, and to diag(400, 25)?",
+            " ".join(problems),
+            hint=(
+                "what does the rotation G = blockdiag(R(θ_z), 1) do to a I₂, and to "
+                "diag(400, 25)?",
+                " ".join(w for w in whys if w)
+                or "G Ω Gᵀ rotates the translational block by θ_z: work it out for a I₂ and for "
+                "diag(400, 25).",
+                "what the check read in the files: " + facts,
+            ),
         )
     return verdict(ex, None, correct=facts)

@@ -42,6 +42,9 @@ __all__ = [
     "DAMPING_LAMBDAS",
     "damping_sweep",
     "check_damping",
+    "EDGE_SYMBOLS",
+    "jacobian_entry_reference",
+    "check_jacobian_entry",
 ]
 
 _RTOL, _ATOL = 1e-7, 1e-9
@@ -111,14 +114,15 @@ def _jacobian_problem(A, B, p_i, p_j, z):
             col = np.asarray(got, float)[:, 2]
             if _close(col[:2], ref[:2, 2]):
                 return (
-                    f"A_ij is right except its entry [2, 2], de_theta/dtheta_i: yours {col[2]:.6g}, "
-                    f"expected {ref[2, 2]:.6g}. The angle error theta_j - theta_i - theta_z "
-                    "falls one for one as theta_i grows."
+                    f"A_ij is right except its entry [2, 2], de_theta/dtheta_i (yours is "
+                    f"{col[2]:.6g}): how does the angle error theta_j - theta_i - theta_z change "
+                    "when theta_i grows a little?"
                 )
+            rows = [r for r in range(3) if not _close(col[r], ref[r, 2])]
             return (
-                f"A_ij's first two columns are right, its third column de/dtheta_i is not: yours "
-                f"{np.round(col, 6).tolist()}, expected {np.round(ref[:, 2], 6).tolist()} (how "
-                "turning x_i moves x_j as seen from x_i, rotated into the measurement's frame)."
+                f"A_ij's first two columns are right, its third column de/dtheta_i is not (row"
+                f"{'s' if len(rows) > 1 else ''} {', '.join(map(str, rows))} of it): how does "
+                "turning x_i move x_j as seen from x_i, rotated into the measurement's frame?"
             )
         return compare_array(got, ref, name=name)
     return None
@@ -146,9 +150,14 @@ def check_jacobians(jacobian_blocks) -> bool:
         Whether every block matched (also recorded for :func:`lagolib.exercises.passed`).
     """
     hint = (
-        "compare with the sympy matrices d.A and d.B printed in section 1: with "
-        "c = cos(theta_i + theta_z), s = sin(theta_i + theta_z), B_ij = [[c, s, 0], [-s, c, 0], "
-        "[0, 0, 1]], and A_ij = -B_ij except its third column."
+        "compare your blocks with the sympy matrices d.A and d.B printed in section 1, entry by "
+        "entry, for the edge named above.",
+        "B_ij = de/dx_j is the rotation blockdiag(R(theta_i + theta_z)^T, 1); A_ij = -B_ij "
+        "except its third column, the derivative of R(theta_i + theta_z)^T (t_j - t_i) by "
+        "theta_i (and -1 for the angle).",
+        "with c = cos(theta_i + theta_z), s = sin(theta_i + theta_z) and (dx, dy) = t_j - t_i: "
+        "B_ij's rows are (c, s, 0), (-s, c, 0), (0, 0, 1); A_ij's third column is "
+        "(-s dx + c dy, -c dx - s dy, -1).",
     )
     worst_ref = worst_fd = 0.0
     cases = _jacobian_cases()
@@ -213,55 +222,55 @@ def _contribution_mistakes(e, A, B, W):
     """For each output, ``[(wrong value, what it is), ...]`` — the usual slips."""
     T = np.transpose
 
-    def block(X, Y, xn, yn, right):
+    # the sentences name the slip, not the right product (that is the hints' last level)
+    def block(X, Y, xn, yn):
         return [
-            (X @ W @ Y, f"{xn} Omega {yn}: the transpose of {xn} is missing ({right})"),
-            (T(X) @ Y @ W, f"{xn}^T {yn} Omega: Omega is on the wrong side ({right})"),
-            (W @ T(X) @ Y, f"Omega {xn}^T {yn}: Omega is on the wrong side ({right})"),
-            (T(X) @ Y, f"{xn}^T {yn}: Omega is missing ({right})"),
+            (X @ W @ Y, f"{xn} Omega {yn}: the transpose of {xn} is missing"),
+            (T(X) @ Y @ W, f"{xn}^T {yn} Omega: Omega is on the wrong side"),
+            (W @ T(X) @ Y, f"Omega {xn}^T {yn}: Omega is on the wrong side"),
+            (T(X) @ Y, f"{xn}^T {yn}: Omega is missing"),
         ]
 
-    def vector(X, xn, right, other):
+    def vector(X, xn, other):
         return [
-            (X @ W @ e, f"{xn} Omega e: the transpose of {xn} is missing ({right})"),
-            (T(X) @ e, f"{xn}^T e: Omega is missing ({right})"),
+            (X @ W @ e, f"{xn} Omega e: the transpose of {xn} is missing"),
+            (T(X) @ e, f"{xn}^T e: Omega is missing"),
             (
                 -(T(X) @ W @ e),
-                f"-{xn}^T Omega e: b has a plus sign ({right}); the minus sign "
-                "belongs to the normal equations H dx = -b",
+                f"-{xn}^T Omega e: b has a plus sign; the minus sign belongs to the normal "
+                "equations H dx = -b",
             ),
-            (T(other[0]) @ W @ e, f"{other[1]}^T Omega e: that uses the other block ({right})"),
+            (T(other[0]) @ W @ e, f"{other[1]}^T Omega e: that uses the other block"),
         ]
 
     AtOA, AtOB, BtOA, BtOB = T(A) @ W @ A, T(A) @ W @ B, T(B) @ W @ A, T(B) @ W @ B
-    r_ii, r_ij, r_jj = "H_ii = A^T Omega A", "H_ij = A^T Omega B", "H_jj = B^T Omega B"
     return {
-        "H_ii": block(A, A, "A", "A", r_ii) + [(BtOB, f"B^T Omega B: that is H_jj ({r_ii})")],
+        "H_ii": block(A, A, "A", "A") + [(BtOB, "B^T Omega B: that is H_jj")],
         "H_ij": [
             (
                 BtOA,
-                f"B^T Omega A: that is H_ji, the transpose of H_ij ({r_ij}: rows of x_i, "
-                "columns of x_j)",
+                "B^T Omega A: that is H_ji, the transpose of H_ij (H_ij has the rows of x_i and "
+                "the columns of x_j)",
             ),
-            (AtOA, f"A^T Omega A: that is H_ii ({r_ij})"),
+            (AtOA, "A^T Omega A: that is H_ii"),
             (
                 BtOB,
-                f"B^T Omega B: that is H_jj — the label the notes' slide gives this product is "
-                f"swapped ({r_ij})",
+                "B^T Omega B: that is H_jj — the label the notes' slide gives this product is "
+                "swapped",
             ),
         ]
-        + block(A, B, "A", "B", r_ij),
-        "H_jj": block(B, B, "B", "B", r_jj)
+        + block(A, B, "A", "B"),
+        "H_jj": block(B, B, "B", "B")
         + [
             (
                 AtOB,
-                f"A^T Omega B: the notes' slide, step 4, labels this product H^jj, but it is "
-                f"the off-diagonal block H_ij ({r_jj})",
+                "A^T Omega B: the notes' slide, step 4, labels this product H^jj, but it is "
+                "the off-diagonal block H_ij",
             ),
-            (AtOA, f"A^T Omega A: that is H_ii ({r_jj})"),
+            (AtOA, "A^T Omega A: that is H_ii"),
         ],
-        "b_i": vector(A, "A", "b_i = A^T Omega e", (B, "B")),
-        "b_j": vector(B, "B", "b_j = B^T Omega e", (A, "A")),
+        "b_i": vector(A, "A", (B, "B")),
+        "b_j": vector(B, "B", (A, "A")),
     }
 
 
@@ -287,9 +296,12 @@ def check_edge_contribution(edge_contribution) -> bool:
     ``H^jj`` label, a minus sign in ``b``.
     """
     hint = (
-        "J_ij = (... A ... B ...), so J^T Omega J has the blocks A^T Omega A, A^T Omega B, "
-        "B^T Omega A, B^T Omega B and J^T Omega e the blocks A^T Omega e, B^T Omega e "
-        "(Omega always in the middle, the transpose on the left)."
+        "write the edge's Jacobian as the block row J_ij = (... A ... B ...) over x_i and x_j, "
+        "and expand J^T Omega J and J^T Omega e block by block (steps 3 and 4 of the notes).",
+        "Omega always sits in the middle and the transposed block on the left; H_ij has the "
+        "rows of x_i and the columns of x_j.",
+        "J^T Omega J has the blocks A^T Omega A, A^T Omega B, B^T Omega A, B^T Omega B and "
+        "J^T Omega e the blocks A^T Omega e, B^T Omega e.",
     )
     names = ("H_ii", "H_ij", "H_jj", "b_i", "b_j")
     cases = _contribution_cases()
@@ -365,7 +377,8 @@ def check_structure(n_blocks, null_dim) -> bool:
 
     Compares ``n_blocks`` — the number of 3x3 blocks of ``H`` that are not zero — and ``null_dim``
     — the dimension of the null space of ``H`` (no prior, no fixed pose) — with what lagolib's
-    ``H`` (:class:`lagolib.gauss_newton.LinearSystem`) has, and prints both actual values.
+    ``H`` (:class:`lagolib.gauss_newton.LinearSystem`) has.  The actual values are printed with a
+    right answer; after a wrong one the hints lead to them (the counts of pairs and components).
     """
     g = structure_graph()
     blocks, null = _structure(g)
@@ -377,14 +390,13 @@ def check_structure(n_blocks, null_dim) -> bool:
         f"lagolib's H has {blocks} non-zero blocks ({g.n} diagonal + 2 x {pairs} pairs of joined "
         f"poses) and a null space of dimension {null} ({count} components x 3)."
     )
-    problems, hints = [], []
+    problems, nudges, methods = [], [], []
     p = compare_int(n_blocks, blocks, name="n_blocks")
     if p is not None:
-        problems.append(p)
         why = {
             g.n
-            + 2 * g.m: "you counted edges: two measurements between the same two poses (0-1 and "
-            "5-6 here) add into the same blocks",
+            + 2 * g.m: "you counted edges: two measurements between the same two poses add into "
+            "the same blocks",
             g.n + pairs: "each pair of joined poses fills two off-diagonal blocks, H_ij and "
             "H_ji = H_ij^T",
             2 * pairs: "every pose also has its diagonal block H_ii",
@@ -393,24 +405,36 @@ def check_structure(n_blocks, null_dim) -> bool:
             "share them",
             g.n * g.n: "H is sparse: block (i, j) is non-zero only when an edge joins i and j",
         }.get(n_blocks)
-        hints.append(
-            why or "count the diagonal blocks, then two blocks per pair of poses that an edge joins"
+        problems.append(p[:-1] + (f": {why}." if why else "."))
+        nudges.append("which blocks of H does one edge (i, j) touch?")
+        methods.append(
+            "count the diagonal blocks, then two blocks (H_ij and H_ji) per distinct pair of "
+            "poses that an edge joins — a pair measured twice counts once"
         )
     p = compare_int(null_dim, null, name="null_dim")
     if p is not None:
-        problems.append(p)
         why = {
-            3: "3 is right for one connected component; this graph has two, and each can be moved "
-            "rigidly on its own",
-            0: "with nothing fixed, a rigid motion of all poses changes no error, so H is singular",
+            3: "that is the null space of a connected graph's H: is this graph connected?",
+            0: "with nothing fixed, a rigid motion of all poses changes no error, so H is "
+            "singular",
         }.get(null_dim)
-        hints.append(
-            why
-            or "a planar rigid motion has 3 degrees of freedom (x, y, rotation); how "
-            "many independent rigid motions leave every error unchanged?"
+        problems.append(f"{p[:-1]}: {why}" + ("" if why.endswith("?") else ".") if why else p)
+        nudges.append("which motions of the poses leave every error unchanged?")
+        methods.append(
+            "a planar rigid motion has 3 degrees of freedom (x, y, rotation), and every part "
+            "of the graph that no edge joins to the rest can be moved rigidly on its own"
         )
     if problems:
-        return verdict("2.3", " ".join(problems) + " " + actual, hint="; ".join(hints) + ".")
+        return verdict(
+            "2.3",
+            " ".join(problems),
+            hint=(
+                "; ".join(nudges),
+                "; ".join(methods) + ".",
+                f"in the printed edge list: {g.m} edges join {pairs} distinct pairs of poses, "
+                f"in {count} connected components.",
+            ),
+        )
     return verdict("2.3", None, correct=actual)
 
 
@@ -464,21 +488,122 @@ def check_damping(trend, same_optimum) -> bool:
     expected_same = spread < 1e-9
     table = ", ".join(f"{lam:.0e}: {it}" for lam, it, _ in sweep)
     actual = f"iterations per lambda_initial {table}; final chi2 spread {spread:.1e} relative."
-    problems, hints = [], []
+    problems, nudges, whys = [], [], []
     p = compare_choice(trend, expected_trend, _TRENDS, name="trend")
     if p is not None:
         problems.append(p)
-        hints.append(
-            "compare the iterations printed for the smallest and the largest lambda_initial; a "
-            "large lambda I swamps H, so the first steps are short gradient steps"
+        nudges.append(
+            "compare the iterations printed for the smallest and the largest lambda_initial "
+            "(only the two ends of the sweep count)"
+        )
+        whys.append(
+            "a large lambda I swamps H, so the first steps are short gradient steps, and lambda "
+            "shrinks only tenfold per accepted step"
         )
     p = compare_choice(same_optimum, expected_same, [True, False], name="same_optimum")
     if p is not None:
         problems.append(p)
-        hints.append(
-            "compare the final chi2 column: the damping changes the path to the minimum, not "
-            "the minimum (at convergence lambda has shrunk and the step is Gauss-Newton's)"
+        nudges.append("compare the final chi2 column, to all its digits")
+        whys.append(
+            "the damping changes the path to the minimum, not the minimum: at convergence "
+            "lambda has shrunk and the step is Gauss-Newton's"
         )
     if problems:
-        return verdict("2.4", " ".join(problems) + " " + actual, hint="; ".join(hints) + ".")
+        return verdict(
+            "2.4",
+            " ".join(problems),
+            hint=(
+                "; ".join(nudges) + ".",
+                "; ".join(whys) + ".",
+                "the check's sweep: " + actual,
+            ),
+        )
     return verdict("2.4", None, correct=actual)
+
+
+# --- derive exercises ---
+# Exercise 2.5 (derive) — :func:`check_jacobian_entry`: the entry ∂e_x/∂θ_i of the lecture notes'
+# Jacobian block A_ij ("Compute the blocks of the Jacobian"), a formula in the symbols of
+# :func:`lagolib.symbolic.pose_symbols`, against sympy's derivative (lagolib.symbolic).
+
+from lagolib import symbolic as _symbolic  # noqa: E402
+from lagolib.exercises._derive import Formula, formula_comparison  # noqa: E402
+
+#: the symbols of exercise 2.5: x_i, y_i, theta_i, x_j, y_j, theta_j, x_z, y_z, theta_z
+EDGE_SYMBOLS = (
+    *_symbolic.pose_symbols("i"),
+    *_symbolic.pose_symbols("j"),
+    *_symbolic.pose_symbols("z"),
+)
+
+
+def jacobian_entry_reference():
+    """``∂e_x/∂θ_i``: entry (0, 2) of ``A_ij``, as sympy differentiates the notes' error.
+
+    ``e_ij = t2v(Z_ij^-1 X_i^-1 X_j)`` is built and differentiated by
+    :func:`lagolib.symbolic.edge_jacobians` (nothing typed in).
+    """
+    return _symbolic.edge_jacobians().A[0, 2]
+
+
+def _jacobian_entry_slips(reference):
+    """Known wrong answers of exercise 2.5 and the sentence that names each."""
+    theta_z = _symbolic.pose_symbols("z")[2]
+    A = _symbolic.edge_jacobians().A
+    return [
+        (
+            reference.subs(theta_z, 0),
+            "it rotates by θ_i alone. The translation error lives in the frame of the "
+            "measurement (frame i turned by the measured θ_z), so the rotation that multiplies "
+            "t_j − t_i is R(θ_i + θ_z).",
+        ),
+        (
+            A[1, 2],
+            "that is ∂e_y/∂θ_i, the derivative of the error's second entry; the exercise asks "
+            "for the first, e_x.",
+        ),
+        (
+            A[0, 0],
+            "that is ∂e_x/∂x_i, the derivative by the position x_i; the exercise asks for the "
+            "derivative by the heading θ_i.",
+        ),
+    ]
+
+
+_JACOBIAN_ENTRY_HINTS = (
+    "only the first part of e_x depends on θ_i: e_x is the first entry of "
+    "R(θ_i + θ_z)^T (t_j − t_i) − R(θ_z)^T t_z, and the measurement's part R(θ_z)^T t_z does not "
+    "move with θ_i. Write e_x out (the printed d.e[0] is it) and differentiate term by term.",
+    "with φ = θ_i + θ_z (so dφ/dθ_i = 1): d cos φ/dθ_i = −sin φ and d sin φ/dθ_i = cos φ; the "
+    "differences x_j − x_i and y_j − y_i are constants for this derivative.",
+    "the result has exactly two terms, one in sin(θ_i + θ_z) and one in cos(θ_i + θ_z): the one "
+    "in sin comes from the cos(θ_i + θ_z)·(x_j − x_i) of e_x, the one in cos from its "
+    "sin(θ_i + θ_z)·(y_j − y_i).",
+)
+
+
+@check("2.5", de_x_dtheta_i=Formula(EDGE_SYMBOLS, example="2*x_i*sin(theta_z)"))
+def check_jacobian_entry(de_x_dtheta_i) -> bool:
+    """Exercise 2.5: ``∂e_x/∂θ_i``, the entry in row 1, column 3 of ``A_ij``, as a formula.
+
+    The answer is a string sympy reads or a sympy expression in :data:`EDGE_SYMBOLS` (``θ_i``
+    may be written ``theta_i``).  It is compared with :func:`jacobian_entry_reference` by
+    :func:`lagolib.exercises._derive.formula_comparison`: sympy's proof that the difference is
+    0, or agreement at random points when sympy cannot simplify it; a wrong formula gets the
+    term that is wrong, never the reference.
+    """
+    reference = jacobian_entry_reference()
+    result = formula_comparison(
+        de_x_dtheta_i,
+        reference,
+        symbols=EDGE_SYMBOLS,
+        name="your ∂e_x/∂θ_i",
+        slips=_jacobian_entry_slips(reference),
+    )
+    if result.problem is not None:
+        return verdict("2.5", result.problem, hint=_JACOBIAN_ENTRY_HINTS)
+    return verdict(
+        "2.5",
+        None,
+        correct=f"your ∂e_x/∂θ_i is sympy's derivative of e_x by θ_i: {result.detail}.",
+    )

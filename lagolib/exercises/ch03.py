@@ -111,6 +111,14 @@ def check_marginal_covariance(marginal_covariance) -> bool:
     K = free.size
     vertices = [int(free[K // 2]), int(free[-1]), int(free[0])]
     worst = 0.0
+    levels = (
+        "the covariance of pose v is a 3×3 block of the inverse of H — not of H, and not the "
+        "inverse of H's block alone.",
+        "pose 0 is fixed, so it has no rows in H: block k of H (and of its inverse) belongs to "
+        "pose free[k].",
+        "invert the whole H (np.linalg.inv(H.toarray()) on this small graph), find k with "
+        "free[k] == v (np.flatnonzero), and take the rows and columns 3k, 3k+1, 3k+2.",
+    )
     for v in vertices:
         got, problem = call_student(
             marginal_covariance, H.copy(), free.copy(), v, name="marginal_covariance(H, free, v)"
@@ -119,9 +127,12 @@ def check_marginal_covariance(marginal_covariance) -> bool:
             return verdict(
                 ex,
                 (f"for pose {v}: " if problem != NOT_ATTEMPTED else "") + problem,
-                hint="H is a scipy.sparse matrix: np.linalg.inv(H.toarray()) gives the dense "
-                "inverse; return its 3x3 block as a numpy array of shape (3, 3) (call .toarray() "
-                "on a sparse result).",
+                hint=(
+                    "H is a scipy.sparse matrix: H.toarray() makes it a dense numpy array (fine "
+                    "on this small graph); return a numpy array of shape (3, 3) (call "
+                    ".toarray() on a sparse result).",
+                    *levels[1:],
+                ),
             )
         k = int(np.flatnonzero(free == v)[0])
         ref = ref_all[v]
@@ -130,38 +141,33 @@ def check_marginal_covariance(marginal_covariance) -> bool:
                 ex,
                 f"for pose {v} you returned H's own diagonal block: that is the information of "
                 "pose v (how tightly the measurements hold it), not its covariance.",
-                hint="invert H first (np.linalg.inv(H.toarray()) on this small graph), then take "
-                "the 3x3 block of the inverse.",
+                hint=levels,
             )
         if matches(got, np.linalg.inv(_block(Hd, k))):
             a = np.sqrt(np.trace(got[:2, :2]))
-            b = np.sqrt(np.trace(ref[:2, :2]))
             return verdict(
                 ex,
                 f"for pose {v} you inverted H's 3x3 block alone: that is the covariance of pose "
-                "v if every other pose were known exactly, and it is too small (position sigma "
-                f"{a:.4g} m instead of {b:.4g} m).",
-                hint="(H^-1)_vv is not (H_vv)^-1: the off-diagonal blocks of H (the edges to the "
-                "neighbours) matter. Invert the whole H, then take the block.",
+                "v if every other pose were known exactly, and it is too small (your position "
+                f"sigma {a:.3g} m leaves out the uncertainty of the path to the anchor).",
+                hint=(
+                    "(H^-1)_vv is not (H_vv)^-1: the off-diagonal blocks of H (the edges to the "
+                    "neighbours) matter.",
+                    *levels[1:],
+                ),
             )
         if v < K and k != v and matches(got, _block(Hinv, v)):
             return verdict(
                 ex,
                 f"for pose {v} you returned block {v} of H^-1, which belongs to pose "
                 f"{int(free[v])}: off by one.",
-                hint="pose 0 is fixed, so its rows are not in H: block k of H is pose free[k]; "
-                "find k with np.flatnonzero(free == v)[0].",
+                hint=levels[1:],
             )
         problem = compare_array(
             got, ref, name=f"your covariance of pose {v}", rtol=1e-7, atol=1e-12
         )
         if problem:
-            return verdict(
-                ex,
-                problem,
-                hint="the covariance of pose v is the 3x3 block of the inverse of H at the rows "
-                "and columns 3k, 3k+1, 3k+2 with free[k] == v.",
-            )
+            return verdict(ex, problem, hint=levels)
         worst = max(worst, float(np.abs(got - ref).max()))
     return verdict(
         ex,
@@ -198,7 +204,8 @@ def check_closure_prediction(shrink, most_uncertain, chain, closed) -> bool:
     (``sqrt(trace)`` of its 2x2 position covariance) with the loop closure to without it;
     ``most_uncertain`` is the pose with the largest position sigma after closing.  The reference:
     :func:`lagolib.uncertainty.marginal_covariances` of ``chain`` at its own poses (odometry only:
-    they are its optimum) and of ``closed`` at its Gauss–Newton optimum.  Prints the actual values.
+    they are its optimum) and of ``closed`` at its Gauss–Newton optimum.  The actual values are
+    printed with a right answer, and are the last hint level after a wrong one.
     """
     ex = "3.2"
     if is_placeholder(shrink) or is_placeholder(most_uncertain):
@@ -222,10 +229,10 @@ def check_closure_prediction(shrink, most_uncertain, chain, closed) -> bool:
             "every covariance can only shrink."
         )
     elif p and "one of" not in p:
+        smaller = SHRINK_CHOICES.index(shrink) < SHRINK_CHOICES.index(_bucket(ratio))
         p = (
-            f"shrink: you predicted '{shrink}', but the ratio is {ratio:.3f}. After the closure "
-            f"pose {last} is one measurement away from the fixed pose 0, not {last} odometry "
-            "steps."
+            f"shrink: {shrink!r} is not the band the ratio falls in: pose {last}'s "
+            f"position sigma shrinks {'more' if smaller else 'less'} than that."
         )
     if p:
         problems.append(p)
@@ -239,13 +246,11 @@ def check_closure_prediction(shrink, most_uncertain, chain, closed) -> bool:
             )
         elif k == 0:
             p = "most_uncertain: pose 0 is the fixed anchor; its covariance is exactly zero."
-        elif abs(k - top) == 1:
-            p = (
-                f"most_uncertain: pose {k} is one step from the farthest point; count the edges "
-                "from pose 0 to it both ways round the loop."
-            )
         elif 0 <= k < closed.n:
-            p = f"most_uncertain: pose {k} has position sigma {after[k]:.3f} m after closing."
+            p = (
+                f"most_uncertain: pose {k} is not the most uncertain pose after the closure "
+                f"(its position sigma is {after[k]:.3f} m)."
+            )
         else:
             p = f"most_uncertain should be a pose index from 0 to {closed.n - 1}; got {k}."
     if p:
@@ -253,9 +258,15 @@ def check_closure_prediction(shrink, most_uncertain, chain, closed) -> bool:
     if problems:
         return verdict(
             ex,
-            " ".join(problems) + f"\n    Actual: {actual}",
-            hint="what matters is the chain of measurements between a pose and the fixed one, "
-            "not the distance in the plane.",
+            " ".join(problems),
+            hint=(
+                "what matters is the chain of measurements between a pose and the fixed one, "
+                "not the distance in the plane.",
+                f"after the closure pose {last} is one measurement away from the fixed pose 0, "
+                f"not {last} odometry steps; for any pose, count the edges from pose 0 to it "
+                "both ways round the loop: the shorter way decides.",
+                f"the check's numbers: {actual}",
+            ),
         )
     return verdict(ex, None, correct=f"both predictions hold. {actual}")
 
@@ -303,20 +314,26 @@ def check_relative_covariance(relative_covariance) -> bool:
             name="relative_covariance(S_ii, S_ij, S_jj, p_i, p_j)",
         )
         if problem:
-            return verdict(ex, problem, hint="return a numpy array of shape (3, 3).")
+            return verdict(
+                ex,
+                problem,
+                hint=(
+                    "return a numpy array of shape (3, 3), computed from the five arguments "
+                    "(S_ii, S_ij, S_jj are 3×3 numpy arrays, p_i and p_j have shape (3,)).",
+                ),
+            )
         ref = relative_covariances(graph, i, [j], poses=poses)[0]
         M, Mr = _lever(p_i, p_j), _lever(p_j, p_i)
         mistakes = [
             (
                 Sjj + M @ Sii @ M.T,
-                "you left out the cross terms -M S_ij - S_ji M^T: x_i and x_j are strongly "
+                "you left out the cross terms (those with S_ij): x_i and x_j are strongly "
                 "correlated (both carry the errors of the path to the anchor), and the "
                 "correlation is what makes the relative uncertainty small.",
             ),
             (
                 Sjj + M @ Sij + Sij.T @ M.T + M @ Sii @ M.T,
-                "the cross terms have the wrong sign: dx_j|i = dx_j - M dx_i, so its covariance "
-                "has -M S_ij - S_ji M^T.",
+                "the cross terms have the wrong sign: dx_j|i = dx_j - M dx_i is a difference.",
             ),
             (
                 Sjj - M @ Sij - Sij @ M.T + M @ Sii @ M.T,
@@ -325,8 +342,8 @@ def check_relative_covariance(relative_covariance) -> bool:
             ),
             (
                 Sjj - M @ Sij.T - Sij @ M.T + M @ Sii @ M.T,
-                "the cross terms are transposed: E[dx_i dx_j^T] = S_ij, so the terms are "
-                "M S_ij and S_ij^T M^T.",
+                "the cross terms are transposed: which of them is E[dx_i dx_j^T] = S_ij, and "
+                "which its transpose?",
             ),
             (
                 Sjj - Sij - Sij.T + Sii,
@@ -335,8 +352,8 @@ def check_relative_covariance(relative_covariance) -> bool:
             ),
             (
                 Sjj - Mr @ Sij - Sij.T @ Mr.T + Mr @ Sii @ Mr.T,
-                "the lever arm points the wrong way: M uses p_j - p_i (the vector from x_i to "
-                "x_j), M = [[1, 0, -(y_j - y_i)], [0, 1, x_j - x_i], [0, 0, 1]].",
+                "the lever arm points the wrong way: M of the statement uses p_j - p_i, the "
+                "vector from x_i to x_j.",
             ),
             (
                 Sjj - M.T @ Sij - Sij.T @ M + M.T @ Sii @ M,
@@ -365,24 +382,22 @@ def check_relative_covariance(relative_covariance) -> bool:
                     "(and like lagolib.uncertainty.relative_covariances): no rotation is needed.",
                 )
             )
+        levels = (
+            "Sigma_j|i is the covariance of dx_j|i = dx_j - M dx_i: expand "
+            "E[(dx_j - M dx_i)(dx_j - M dx_i)^T] term by term.",
+            "four terms, with E[dx_i dx_j^T] = S_ij, E[dx_j dx_i^T] = S_ij^T and the lever arm M "
+            "of the statement built from p_j - p_i; nothing is rotated into a pose's frame.",
+            "the four terms: S_jj, M S_ii M^T, and the two cross terms — -M S_ij and its "
+            "transpose.",
+        )
         for wrong, message in mistakes:
             if matches(got, wrong):
-                return verdict(
-                    ex,
-                    f"for the pair (i, j) = ({i}, {j}) {message}",
-                    hint="expand E[(dx_j - M dx_i)(dx_j - M dx_i)^T] term by term.",
-                )
+                return verdict(ex, f"for the pair (i, j) = ({i}, {j}) {message}", hint=levels)
         problem = compare_array(
             got, ref, name=f"your Sigma_j|i for (i, j) = ({i}, {j})", rtol=1e-7, atol=1e-12
         )
         if problem:
-            return verdict(
-                ex,
-                problem,
-                hint="expand E[(dx_j - M dx_i)(dx_j - M dx_i)^T] term by term, with "
-                "E[dx_i dx_j^T] = S_ij and E[dx_j dx_i^T] = S_ij^T, and the lever arm M of the "
-                "statement.",
-            )
+            return verdict(ex, problem, hint=levels)
         worst = max(worst, float(np.abs(got - ref).max()))
     return verdict(
         ex,
@@ -452,9 +467,8 @@ def check_gate(trend, max_false_error, graph, poses, truth, candidates, informat
     p = compare_choice(trend, expected_trend, TREND_CHOICES, name="trend")
     if p and "one of" not in p:
         p = (
-            f"trend: from confidence {_CONFIDENCES[0]} to {_CONFIDENCES[-1]} the gate accepts "
-            f"{t0} -> {t1} true and {f0} -> {f1} false candidates. A higher confidence is a "
-            "higher threshold on d^2, so it can only accept more."
+            f"trend: {trend!r} is not what the gate does as its confidence rises from "
+            f"{_CONFIDENCES[0]} to {_CONFIDENCES[-1]}."
         )
     if p:
         problems.append(p)
@@ -470,10 +484,7 @@ def check_gate(trend, max_false_error, graph, poses, truth, candidates, informat
                 f"not {GATE_CONFIDENCE} (threshold {_chi2_3(GATE_CONFIDENCE):.2f})."
             )
         elif abs(g / 100.0 - expected) <= 0.006:
-            p = (
-                f"max_false_error: {g:.3g} looks like centimetres; the answer is in metres "
-                f"({g / 100.0:.3f} m)."
-            )
+            p = f"max_false_error: {g:.3g} looks like centimetres; the answer is in metres."
         elif false.any() and abs(float(error[false].max()) - g) <= 0.006:
             p = (
                 f"max_false_error: {g:.3f} m is the largest error of all false candidates; "
@@ -485,7 +496,7 @@ def check_gate(trend, max_false_error, graph, poses, truth, candidates, informat
                 "(their measurement noise); the question is about the false ones."
             )
         else:
-            p = f"max_false_error is {g:.3f} m; read it off the row for confidence {GATE_CONFIDENCE}."
+            p += f" Read it off the row for confidence {GATE_CONFIDENCE}."
     if p:
         problems.append(p)
     summary = (
@@ -497,8 +508,15 @@ def check_gate(trend, max_false_error, graph, poses, truth, candidates, informat
     if problems:
         return verdict(
             ex,
-            " ".join(problems) + f"\n    Actual: {summary}",
-            hint="move the slider (or read the printed table): count the accepted candidates of "
-            "each kind, and look at the errors of the false ones it lets through.",
+            " ".join(problems),
+            hint=(
+                "move the slider (or read the printed table): count the accepted candidates of "
+                "each kind, and look at the errors of the false ones it lets through.",
+                "a higher confidence is a higher threshold on d^2; max_false_error is the largest "
+                f"true error among the false candidates with d^2 <= {_chi2_3(GATE_CONFIDENCE):.2f} "
+                f"(confidence {GATE_CONFIDENCE}), in metres.",
+                f"from confidence {_CONFIDENCES[0]} to {_CONFIDENCES[-1]} the gate accepts "
+                f"{t0} -> {t1} true and {f0} -> {f1} false candidates; {summary}",
+            ),
         )
     return verdict(ex, None, correct=f"{expected_trend}; {summary}")

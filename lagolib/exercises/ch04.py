@@ -132,11 +132,13 @@ def _incidence_problem(got, expected, n_nodes, edges):
             "your entries are all 0 or +1: the tail of every edge needs −1 (and the head +1), "
             "otherwise 𝒜ᵀθ is a sum θ_i + θ_j instead of a difference."
         )
-    k = int(np.flatnonzero(np.any(g != expected, axis=0))[0])
+    wrong = np.flatnonzero(np.any(g != expected, axis=0))
+    k = int(wrong[0])
     i, j = (int(x) for x in edges[k])
     return (
-        f"column {k}, edge {k} = ({i}, {j}), is {(g[:, k] + 0.0).tolist()}; expected −1 in row {i}, +1 "
-        f"in row {j} and 0 elsewhere: {expected[:, k].astype(int).tolist()}."
+        f"{wrong.size} of the {m} columns {'is' if wrong.size == 1 else 'are'} not right; the "
+        f"first, column {k} for edge {k} = "
+        f"({i}, {j}), is {(g[:, k] + 0.0).tolist()}: which rows should hold its −1 and its +1?"
     )
 
 
@@ -174,8 +176,16 @@ def check_incidence(incidence) -> bool:
             return verdict(
                 ex,
                 problem,
-                hint="start from np.zeros((n_nodes, m)); for edge k = (i, j) put −1 in row i "
-                "and +1 in row j of column k.",
+                hint=(
+                    "𝒜 has one row per node and one column per edge; column k describes edge k "
+                    "alone, whatever the other edges are.",
+                    "Carlone's convention: the column of edge (i, j) has −1 at the tail i, where "
+                    "the edge leaves, +1 at the head j, and 0 elsewhere, so that 𝒜ᵀθ gives "
+                    "θ_j − θ_i; rows are vertex rows counted from 0.",
+                    "start from np.zeros((n_nodes, m)); for edge k = (i, j) set the entries "
+                    "(i, k) and (j, k) — a loop over k, or numpy's fancy indexing with "
+                    "np.arange(m).",
+                ),
             )
     total = sum(len(e) for _, e in cases)
     return verdict(
@@ -205,7 +215,8 @@ def check_chords(n_tree_edges, n_chords) -> bool:
     The graph: :data:`PREDICT_NODES` = 8 poses (``n + 1``), the :data:`PREDICT_EDGES` (``m`` =
     12: seven odometric edges, three loop closures, two repeated measurements).  Compares the
     predictions with lagolib's odometric and breadth-first spanning trees (their number of edges
-    and chords) and :func:`lagolib.topology.cyclomatic_number`, and prints the actual values.
+    and chords) and :func:`lagolib.topology.cyclomatic_number`; the actual values are printed with
+    a right answer, and are the last hint level after a wrong one.
     Recognizes the off-by-one (counting nodes instead of ``n``), forgetting the repeated
     measurements, and a prediction where tree edges and chords do not add up to ``m``.
 
@@ -231,30 +242,31 @@ def check_chords(n_tree_edges, n_chords) -> bool:
         f"{odo.edges.size} edges and leaves {odo.d} chords, its BFS tree {bfs.edges.size} and "
         f"{bfs.d}, and cyclomatic_number = {d}"
     )
-    hint = "a tree on n + 1 nodes hangs every node but the root from one edge; d = m − n (Cor. 1)."
+    hint = (
+        "a spanning tree reaches every node; how many edges does it need to hang each node but "
+        "the root from its parent?",
+        "a tree on n + 1 nodes has n edges, and every edge that is not in the tree is a chord: "
+        "d = m − n (Carlone et al., Cor. 1) — a repeated measurement is an edge like any other.",
+        f"the graph has {g.n} nodes (n + 1) and m = {g.m} edges.",
+    )
     for name, value in (("n_tree_edges", n_tree_edges), ("n_chords", n_chords)):
         if is_placeholder(value):
-            return verdict(
-                ex, f"{name} is still `...`: write both predictions.\n    ({actual}.)", hint=hint
-            )
+            return verdict(ex, f"{name} is still `...`: write both predictions.", hint=hint)
     problems = []
     wrong_tree = compare_int(n_tree_edges, n_tree, name="n_tree_edges")
     if wrong_tree is not None:
         if n_tree_edges == g.n:
             wrong_tree = (
-                f"n_tree_edges = {n_tree_edges} is the number of nodes, n + 1. A spanning tree "
-                f"has one edge fewer: n = {n_tree} (each node but the root hangs from its parent "
-                "by one edge)."
+                f"n_tree_edges = {n_tree_edges} is the number of nodes, n + 1, as if every node "
+                "hung from an edge of its own — the root does not."
             )
-        else:
-            wrong_tree += " A spanning tree has n = (number of nodes) − 1 edges."
         problems.append(wrong_tree)
     wrong_d = compare_int(n_chords, d, name="n_chords")
     if wrong_d is not None:
         if n_chords == g.m - g.n:
             wrong_d = (
-                f"n_chords = {n_chords} = m − (n + 1): the classic off-by-one. The tree has n = "
-                f"{n_tree} edges, not one per node, so d = m − n = {g.m} − {n_tree} = {d}."
+                f"n_chords = {n_chords} = m − (n + 1): the classic off-by-one — the tree does "
+                "not have one edge per node."
             )
         elif n_chords == pairs - n_tree:
             wrong_d = (
@@ -264,8 +276,8 @@ def check_chords(n_tree_edges, n_chords) -> bool:
             )
         elif n_chords == g.m - n_tree + 1:
             wrong_d = (
-                f"n_chords = {n_chords} = m − n + 1 with the paper's n = {n_tree}: the '+ 1' "
-                f"belongs to lagolib's count, d = graph.m − graph.n + 1 = {g.m} − {g.n} + 1."
+                f"n_chords = {n_chords} = m − n + 1 with the paper's n: the '+ 1' belongs to "
+                "lagolib's count, d = graph.m − graph.n + 1, where graph.n is the paper's n + 1."
             )
         problems.append(wrong_d)
     if problems and n_tree_edges + n_chords != g.m:
@@ -274,7 +286,9 @@ def check_chords(n_tree_edges, n_chords) -> bool:
             f"one of the m = {g.m} edges is either a tree edge or a chord."
         )
     if problems:
-        return verdict(ex, " ".join(problems) + f"\n    (Actual: {actual}.)", hint=hint)
+        return verdict(
+            ex, " ".join(problems), hint=(*hint, f"lagolib's own count: {actual}.")
+        )
     return verdict(ex, None, correct=f"{actual}: d = m − n = {g.m} − {n_tree} = {d}.")
 
 
@@ -440,18 +454,23 @@ def check_circuit_vector(circuit_vector) -> bool:
     """
     ex = "4.3"
     hint = (
-        "put +1 at the chord; climb from i and from j towards the root (the deeper end first) "
-        "until they meet; an edge walked tail → head counts +1. Self-test: your vector times "
-        "𝒜ᵀ must be 0."
+        "self-test: a circuit enters every node as often as it leaves it, so "
+        "topology.incidence_matrix(graph) @ c must be 0 for your vector c.",
+        "Def. 1: the fundamental circuit is the chord plus the tree path between its two ends — "
+        "up from each end to their common ancestor, not to the root — walked from i to j along "
+        "the chord and back from j to i along the tree.",
+        "put +1 at the chord; climb from i and from j towards the root (the deeper end first, "
+        "tree.depth) until they meet; at each step the edge tree.parent_edge of the vertex you "
+        "leave counts +1 when walked tail → head, −1 when walked head → tail.",
     )
     graph = circuit_graph()
 
     def where(description, chord, expected, got=None):
         i, j = (int(x) for x in graph.edges[chord])
-        text = f"\n    (chord e{chord} = ({i}, {j}) of {description};"
+        text = f"\n    (chord e{chord} = ({i}, {j}) of {description}"
         if got is not None:
-            text += f"\n     yours:    {got.astype(int).tolist()}"
-        return text + f"\n     expected: {expected.astype(int).tolist()})"
+            text += f"; yours: {got.astype(int).tolist()}"
+        return text + ")"
 
     cases = []
     for description, tree in circuit_trees(graph):
@@ -574,15 +593,19 @@ def check_tree_exploration(safer_tree, odometric_anchor_matters, graph) -> bool:
     bfs_changes = any(
         b.shape != bfs_bases[0].shape or (b != bfs_bases[0]).nnz for b in bfs_bases[1:]
     )
-    problems = []
+    problems, facts = [], []
     wrong = compare_choice(safer_tree, safer, ("odometric", "bfs"), name="safer_tree")
     if wrong is not None:
         if not wrong.endswith(WRONG_CHOICE):
             problems.append(wrong)  # not one of the choices
         else:
             problems.append(
-                f"safer_tree = {safer_tree!r}, but the {read}: the {safer} tree's circuits "
-                "are shorter, so less noise adds up around them."
+                f"safer_tree = {safer_tree!r} is not the tree whose worst circuit carries less "
+                "noise."
+            )
+            facts.append(
+                f"{read}: the {safer} tree's circuits are shorter, so less noise adds up around "
+                "them"
             )
     wrong = compare_choice(
         odometric_anchor_matters, matters, (True, False), name="odometric_anchor_matters"
@@ -590,24 +613,30 @@ def check_tree_exploration(safer_tree, odometric_anchor_matters, graph) -> bool:
     if wrong is not None:
         if not wrong.endswith(WRONG_CHOICE):
             problems.append(wrong)  # not one of the choices
-        elif not matters:
-            problems.append(
-                f"odometric_anchor_matters = {odometric_anchor_matters!r}, but the odometric "
-                f"tree's 𝒞 is identical with the anchor at vertex {anchors[0]}, {anchors[1]} or "
-                f"{anchors[2]}; only its depth changes ({', '.join(map(str, depths))})."
-            )
         else:
             problems.append(
-                f"odometric_anchor_matters = {odometric_anchor_matters!r}, but on this graph the "
-                "odometric tree's circuits change with the anchor."
+                f"odometric_anchor_matters = {odometric_anchor_matters!r} is not what the "
+                "odometric tree's cycle bases show."
+            )
+            facts.append(
+                f"the odometric tree's 𝒞 is identical with the anchor at vertex {anchors[0]}, "
+                f"{anchors[1]} or {anchors[2]}; only its depth changes "
+                f"({', '.join(map(str, depths))})"
+                if not matters
+                else "on this graph the odometric tree's circuits change with the anchor"
             )
     if problems:
         return verdict(
             ex,
             " ".join(problems),
-            hint="compare nnz(C), the longest circuit and the worst σ printed for each tree and "
-            "anchor — not the depth. A fundamental circuit is the chord plus the tree path "
-            "between its two ends: does that path depend on where the root is?",
+            hint=(
+                "compare nnz(C), the longest circuit and the worst σ printed for each tree and "
+                "anchor — not the depth.",
+                "a fundamental circuit is the chord plus the tree path between its two ends: "
+                "does that path depend on where the root is? And the noise of a circuit adds "
+                "up over its edges: which tree has the shorter circuits?",
+                "the check's numbers: " + "; ".join(facts) + ".",
+            ),
         )
     return verdict(
         ex,

@@ -18,6 +18,7 @@ answer.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 
 import numpy as np
@@ -44,10 +45,17 @@ __all__ = [
     "closure_world",
     "explore_world",
     "wrong_k",
+    "DenseMatrixRefused",
+    "nothing_dense",
     "check_phase1",
     "check_regularize_chord",
     "check_n_regularized",
     "check_noise_tolerance",
+    "VARIANCE_SYMBOLS",
+    "TRIANGLE_EDGES",
+    "triangle_graph",
+    "blue_variance_reference",
+    "check_blue_variance",
 ]
 
 TWO_PI = 2.0 * np.pi
@@ -101,6 +109,63 @@ def _weighted_solve(A, delta, w):
     return np.linalg.solve(Ad @ (w[:, None] * Ad.T), Ad @ (w * delta))
 
 
+class DenseMatrixRefused(Exception):
+    """Raised inside a student's function that makes a sparse matrix dense (exercise 5.1)."""
+
+
+def _sparse_classes():
+    """The scipy.sparse classes that define ``toarray`` or ``todense`` themselves."""
+    import scipy.sparse as sp
+
+    found = set()
+    for name in dir(sp):
+        cls = getattr(sp, name)
+        if isinstance(cls, type) and issubclass(cls, (sp.spmatrix, sp.sparray)):
+            found.update(
+                k for k in cls.__mro__ if "toarray" in vars(k) or "todense" in vars(k)
+            )
+    return found
+
+
+@contextlib.contextmanager
+def nothing_dense(refused: list):
+    """While the block runs, making a sparse *matrix* dense raises :class:`DenseMatrixRefused`.
+
+    ``.toarray()`` and ``.todense()`` of every scipy.sparse class refuse a result with more than
+    one row and more than one column (a vector, (n, 1) or (1, n), may be made dense: spsolve
+    does so with a sparse right-hand side); each refusal is appended to ``refused`` as
+    ``(method, shape)``, so that a function that catches the exception is still seen.  The
+    methods are restored when the block ends, whatever happens in it.
+    """
+    saved = []
+
+    def guard(method, original):
+        @functools.wraps(original)
+        def refuse(self, *args, **kwargs):
+            shape = tuple(getattr(self, "shape", ()))
+            if len(shape) == 2 and min(shape) > 1:
+                refused.append((method, shape))
+                raise DenseMatrixRefused(
+                    f".{method}() on a {shape[0]}×{shape[1]} sparse matrix: exercise 5.1 keeps "
+                    "every matrix sparse"
+                )
+            return original(self, *args, **kwargs)
+
+        return refuse
+
+    try:
+        for cls in _sparse_classes():
+            for method in ("toarray", "todense"):
+                if method in vars(cls):
+                    original = vars(cls)[method]
+                    saved.append((cls, method, original))
+                    setattr(cls, method, guard(method, original))
+        yield refused
+    finally:
+        for cls, method, original in saved:
+            setattr(cls, method, original)
+
+
 @check("5.1", phase1=Function(RealArray(("n",))))
 def check_phase1(phase1) -> bool:
     """Exercise 5.1: ``phase1(A, delta_bar, omega)`` → ``θ̂``, shape (n,) (Carlone et al. 2011, eq. 13).
@@ -109,22 +174,58 @@ def check_phase1(phase1) -> bool:
     with anisotropic, rotated, x/y–θ-coupled information, anchored in the middle) with ``A`` the
     sparse reduced incidence matrix (n, m), ``delta_bar`` the regularized relative orientations
     (m,) and ``omega`` = ``P_δ⁻¹`` per edge (m,); compared with
-    :func:`lagolib.lago.phase1_orientations` (rtol 1e-7).  Diagnosed: the weights ignored
-    (ordinary least squares), variances used instead of information (``1/ω``), the anchor's row
-    returned too, a column vector.
+    :func:`lagolib.lago.phase1_orientations` (rtol 1e-7).  The exercise asks for nothing dense:
+    the student's function runs under :func:`nothing_dense`, and a solution that calls
+    ``.toarray()`` or ``.todense()`` on a matrix (more than one row and column) is "not yet",
+    however right its θ̂.  Diagnosed: the weights ignored (ordinary least squares), variances
+    used instead of information (``1/ω``), the anchor's row returned too, a column vector, θ̂
+    wrapped.
     """
     ex = "5.1"
+    levels = (
+        "eq. (13) is a weighted least-squares problem: its normal equations are "
+        "A P_δ⁻¹ Aᵀ θ̂ = A P_δ⁻¹ δ̄, with P_δ⁻¹ the diagonal matrix of omega (information, not "
+        "variance).",
+        "keep everything sparse: P_δ⁻¹ as sp.diags(omega), the (n, n) information matrix as a "
+        "product of sparse matrices, and scipy.sparse.linalg.spsolve to solve it; the "
+        "right-hand side needs no matrix at all (omega * delta_bar is elementwise).",
+        "θ̂ = spsolve(I, r) with I = A P_δ⁻¹ Aᵀ (sparse, converted .tocsc()) and r = A times the "
+        "vector omega * delta_bar; return it as it is: shape (n,), not wrapped.",
+    )
     worst, sizes = 0.0, []
     for (g, A, delta_bar, omega, ref), kind in zip(_phase1_cases(), ("loop", "Manhattan world")):
-        got, problem = call_student(
-            phase1, A.copy(), delta_bar.copy(), omega.copy(), name="phase1(A, delta_bar, omega)"
-        )
+        with nothing_dense([]) as refused:
+            got, problem = call_student(
+                phase1,
+                A.copy(),
+                delta_bar.copy(),
+                omega.copy(),
+                name="phase1(A, delta_bar, omega)",
+            )
+        if refused:
+            method, shape = refused[0]
+            return verdict(
+                ex,
+                f"your phase1 made a sparse matrix dense (.{method}() on a {shape[0]}×{shape[1]} "
+                "matrix), and the check refuses it: exercise 5.1 keeps every matrix sparse. A "
+                "dense A P_δ⁻¹ Aᵀ for a map of 10⁵ poses holds n² = 10¹⁰ numbers (80 GB), a "
+                "dense solve costs n³.",
+                hint=(
+                    "no .toarray() or .todense(), and no np.linalg.lstsq / solve / inv: form the "
+                    "information matrix as a product of sparse matrices and solve it with "
+                    "scipy.sparse.linalg.spsolve.",
+                    *levels[1:],
+                ),
+            )
         if problem:
             return verdict(
                 ex,
                 problem,
-                hint="A is sparse with shape (n, m): A @ sp.diags(omega) @ A.T is (n, n); "
-                "return spsolve(...) of shape (n,).",
+                hint=(
+                    "A is a scipy.sparse matrix of shape (n, m), delta_bar and omega numpy "
+                    "arrays of shape (m,); return a numpy array of shape (n,).",
+                    *levels,
+                ),
             )
         what = f"on a {g.n}-pose graph with {g.m} edges"
         arr = got  # a float array: call_student read it
@@ -133,29 +234,32 @@ def check_phase1(phase1) -> bool:
                 ex,
                 f"{what} your θ̂ has shape {arr.shape}, a column; the reference is a flat vector "
                 f"of shape {ref.shape}.",
-                hint="return a 1-D array: np.ravel(...) or spsolve's own result.",
+                hint=("return a 1-D array: np.ravel(...) or spsolve's own result.",),
             )
         if arr.shape == (ref.size + 1,):
             return verdict(
                 ex,
                 f"{what} your θ̂ has {arr.size} entries, one per vertex; the anchor's "
                 f"orientation is fixed to 0 and is not an unknown ({ref.size} expected).",
-                hint="A has one row per non-anchor vertex: solve for exactly A.shape[0] values.",
+                hint=("A has one row per non-anchor vertex: solve for exactly A.shape[0] values.",),
             )
         if matches(got, _weighted_solve(A, delta_bar, np.ones_like(omega)), 1e-7):
             return verdict(
                 ex,
                 f"{what} you solved A Aᵀ θ = A δ̄: ordinary least squares, every edge weighted "
                 "the same.",
-                hint="eq. (13) weights each edge by its information P_δ⁻¹ = omega: "
-                "A P_δ⁻¹ Aᵀ θ = A P_δ⁻¹ δ̄, with P_δ⁻¹ = sp.diags(omega).",
+                hint=(
+                    "eq. (13) weights each edge by its information P_δ⁻¹ = omega: "
+                    "A P_δ⁻¹ Aᵀ θ = A P_δ⁻¹ δ̄.",
+                    *levels[1:],
+                ),
             )
         if matches(got, _weighted_solve(A, delta_bar, 1.0 / omega), 1e-7):
             return verdict(
                 ex,
                 f"{what} you weighted the edges by 1/omega, their variances: the noisiest edges "
                 "then count the most.",
-                hint="omega already is P_δ⁻¹ (information); use sp.diags(omega) as it is.",
+                hint=("omega already is P_δ⁻¹ (information); use it as it is.", *levels[1:]),
             )
         if (
             arr.shape == ref.shape
@@ -167,18 +271,14 @@ def check_phase1(phase1) -> bool:
                 ex,
                 f"{what} your θ̂ equals the reference modulo 2π, but some entries are off by "
                 f"whole turns (up to {turns}): was θ̂ wrapped?",
-                hint="eq. (13) is a linear solve; return its solution as it is. The regularized "
-                "δ̄ carries the turns, and θ̂ keeps them (it is not wrapped).",
+                hint=(
+                    "eq. (13) is a linear solve; return its solution as it is. The regularized "
+                    "δ̄ carries the turns, and θ̂ keeps them (it is not wrapped).",
+                ),
             )
         problem = compare_array(got, ref, name="your θ̂", rtol=1e-7, atol=1e-9)
         if problem:
-            return verdict(
-                ex,
-                f"{what} " + problem,
-                hint="θ̂ = (A P_δ⁻¹ Aᵀ)⁻¹ A P_δ⁻¹ δ̄: form the information matrix "
-                "I = A @ sp.diags(omega) @ A.T and solve I θ̂ = A @ (omega * delta_bar) with "
-                "spsolve — do not wrap θ̂.",
-            )
+            return verdict(ex, f"{what} " + problem, hint=levels)
         worst = max(worst, float(np.abs(arr - ref).max()))
         sizes.append(f"a {g.n}-pose {kind} with {g.m} edges")
     return verdict(
@@ -226,8 +326,8 @@ def _k_candidates(turns):
     return (
         (
             np.round(turns),
-            "the opposite sign: eq. (22) asks for C ν = −C δ, so the correction "
-            "removes the turns the circuit summed to: k = −round(C δ / 2π)",
+            "the opposite sign: eq. (22) asks for C ν = −C δ, so the correction removes the "
+            "turns the circuit summed to instead of adding more",
         ),
         (
             -np.floor(turns),
@@ -247,6 +347,15 @@ def _k_candidates(turns):
 
 
 _CHORD = Tuple(Real(), Real(), names=("cycle_sum", "k"), what="two numbers, (cycle_sum, k)")
+_CHORD_RETURN = "end the function with `return cycle_sum, k`: two numbers, k a whole one."
+_CHORD_LEVELS = (
+    "the circuit is the chord plus the tree path back; `edges` lists them (the chord first) "
+    "and `signs` says which way each is walked.",
+    "eq. (22): (𝒞δ)_c sums ±delta around the circuit, not wrapped; eq. (23) then removes its "
+    "whole turns: the nearest whole number of turns, with the opposite sign.",
+    "cycle_sum: the sum of signs times delta over `edges` (numpy indexing: delta[edges]), "
+    "not wrapped; k: minus the sum in turns (÷ 2π), rounded to the nearest integer, as an int.",
+)
 
 
 @check("5.2", regularize_chord=Function(_CHORD))
@@ -281,12 +390,7 @@ def check_regularize_chord(regularize_chord) -> bool:
                 name="regularize_chord(delta, edges, signs)",
             )
             if problem:
-                return verdict(
-                    ex,
-                    problem,
-                    hint="end with `return cycle_sum, k`: cycle_sum = np.sum(signs * "
-                    "delta[edges]) and k = -round(cycle_sum / 2π) as an int.",
-                )
+                return verdict(ex, problem, hint=(_CHORD_RETURN, *_CHORD_LEVELS))
             s, k = value  # two floats: call_student read them
             a, b = (int(v) for v in g.ids[g.edges[chord]])
             s_ref = float(reg.cycle_sums[c])
@@ -304,54 +408,59 @@ def check_regularize_chord(regularize_chord) -> bool:
             continue
         head = (
             f"for the chord {chord} ({a} -> {b}) with the {tree!r} tree, whose circuit has "
-            f"{edges.size} edges and sums to {s_ref:+.4f} rad ({s_ref / TWO_PI:+.2f} turns), "
+            f"{edges.size} edges, "
         )
         if matches(k, s_ref) and matches(s, k_ref):
             return verdict(
                 ex,
                 head + f"your function returned ({s!r}, {k!r}): k first, then the sum. The "
                 "exercise asks for the pair in the order (cycle_sum, k).",
-                hint="end with `return cycle_sum, k`.",
+                hint=(_CHORD_RETURN,),
             )
         if matches(s, delta[chord]):
             return verdict(
                 ex,
                 head + "your cycle_sum is the chord's own angle delta[chord]: the tree path is "
                 "missing.",
-                hint="the circuit is the chord plus the tree path back; sum over all of "
-                "`edges`: np.sum(signs * delta[edges]).",
+                hint=(
+                    "the circuit is the chord plus the tree path back: sum over all of `edges`.",
+                    *_CHORD_LEVELS[1:],
+                ),
             )
         if abs(delta[chord]) > 1e-6 and matches(s, s_ref - delta[chord]):
             return verdict(
                 ex,
                 head + "your cycle_sum is the tree path alone: the chord itself is missing.",
-                hint="the fundamental circuit is the chord plus the tree path (Def. 1); `edges` "
-                "starts with the chord (sign +1): np.sum(signs * delta[edges]).",
+                hint=(
+                    "the fundamental circuit is the chord plus the tree path (Def. 1); `edges` "
+                    "starts with the chord (sign +1).",
+                    *_CHORD_LEVELS[1:],
+                ),
             )
         if matches(s, np.sum(delta[edges])):
             return verdict(
                 ex,
                 head + "your cycle_sum adds the angles without their signs.",
-                hint="an edge walked against its direction (sign −1) contributes −delta: "
-                "np.sum(signs * delta[edges]).",
+                hint=(
+                    "an edge walked against its direction (sign −1) turns the robot by −delta.",
+                    *_CHORD_LEVELS[1:],
+                ),
             )
         if matches(s, -s_ref):
             return verdict(
                 ex,
                 head + "your cycle_sum has the opposite sign: the circuit walks the chord "
                 "forwards (sign +1, first in `edges`).",
-                hint="np.sum(signs * delta[edges]), with the signs as given.",
+                hint=("use the signs as given: +1 for the chord.", *_CHORD_LEVELS[1:]),
             )
         if matches(s, se2.wrap_angle(s_ref)):
             return verdict(
                 ex,
                 head + "your cycle_sum is wrapped into (−π, π]: the whole turns that k must "
                 "remove are gone.",
-                hint="do not wrap the sum; only the rounding to whole turns comes after it.",
+                hint=("do not wrap the sum; only the rounding to whole turns comes after it.",),
             )
-        return verdict(
-            ex, head + problem, hint="cycle_sum = np.sum(signs * delta[edges]) (eq. 22)."
-        )
+        return verdict(ex, head + problem, hint=_CHORD_LEVELS)
     # k, over all chords at once: a wrong formula is recognized by matching everywhere
     ks = np.array(got_k)
     ref_k = np.array(ref_k)
@@ -369,29 +478,24 @@ def check_regularize_chord(regularize_chord) -> bool:
     w = int(wrong[0])
     tree, chord, a, b = where[w][:4]
     head = (
-        f"for the chord {chord} ({a} -> {b}) with the {tree!r} tree the circuit sums to "
-        f"{turns[w]:+.3f} turns; your k is {got_k[w]:g}, eq. (23) gives {ref_k[w]} "
-        f"({wrong.size} of {ks.size} chords differ)"
+        # the cycle sums are right here: the turns are the student's own sum / 2π
+        f"your cycle sums are right, but not every k ({wrong.size} of {ks.size} chords differ); "
+        f"the first: the chord {chord} ({a} -> {b}) with the {tree!r} tree, whose circuit sums "
+        f"to {turns[w]:+.3f} turns, gets your k = {got_k[w]:g}"
+    )
+    k_levels = (
+        "k is the whole number of turns eq. (23) puts on the chord, ν_c = 2π k, so that the "
+        "corrected circuit sums to (nearly) zero.",
+        "eq. (22)–(23): round the circuit's sum, in turns (÷ 2π), to the nearest whole number, "
+        "and take the opposite sign.",
+        _CHORD_LEVELS[2],
     )
     if not np.all(ks == np.round(ks)):
-        return verdict(
-            ex,
-            head + ": k must be a whole number of turns.",
-            hint="round to the nearest integer: -int(np.round(cycle_sum / (2 * np.pi))).",
-        )
+        return verdict(ex, head + ": k must be a whole number of turns.", hint=k_levels)
     for candidate, what in _k_candidates(turns):
         if np.array_equal(ks, candidate):
-            return verdict(
-                ex,
-                head + f": you used {what}.",
-                hint="k = -int(np.round(cycle_sum / (2 * np.pi))).",
-            )
-    return verdict(
-        ex,
-        head + ".",
-        hint="k is the number of whole turns to remove from the circuit: "
-        "-round(cycle_sum / 2π), in turns, not radians.",
-    )
+            return verdict(ex, head + f": you used {what}.", hint=k_levels[1:])
+    return verdict(ex, head + ".", hint=k_levels)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -420,7 +524,8 @@ def check_n_regularized(n_predicted) -> bool:
     """Exercise 5.3: the predicted number of chords with ``k ≠ 0`` in :func:`closure_world`.
 
     Compared with ``lagolib.lago.regularize(graph, "odometric").n_regularized`` (Table I's last
-    column for this graph); prints the actual count and every chord's ``k``.  Diagnosed: every
+    column for this graph); the actual count and every chord's ``k`` are printed with a right
+    answer, and every ``k`` is the last hint level after a wrong one.  Diagnosed: every
     closure counted, only the closures spanning a whole lap or more counted (the rounding
     boundary is half a turn), and the closures that cross the lap's start line counted.
     """
@@ -448,9 +553,13 @@ def check_n_regularized(n_predicted) -> bool:
     full_laps = int(np.count_nonzero(swing > TWO_PI - 0.5))
     crossing = int(np.count_nonzero((reg.k[reg.chords] != 0) | ((i // 20) != (j // 20))))
     hint = (
+        "the circuit of a chord i → j of the odometric tree is the closure plus the odometry "
+        "walked back from j to i: what does it sum to, when the odometry turns by Δ between "
+        "the two poses and the closure measures Δ wrapped?",
         "a chord needs k ≠ 0 when the odometry between its two poses turns by more than half a "
         "turn (180°) either way: the closure itself measures that angle wrapped into (−180°, "
-        "180°], and the circuit's sum is the difference."
+        "180°], and the circuit's sum is the difference.",
+        f"lagolib's regularize, chord by chord: {listing}.",
     )
     if n_predicted == reg.tree.d:
         problem += (
@@ -463,7 +572,7 @@ def check_n_regularized(n_predicted) -> bool:
         )
     elif n_predicted == crossing:
         problem += " Crossing the start line of a lap does not by itself make a circuit wind."
-    return verdict(ex, problem + f" lagolib's regularize finds {n}: {listing}.", hint=hint)
+    return verdict(ex, problem, hint=hint)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -540,8 +649,9 @@ def check_noise_tolerance(first_wrong_odometric, first_wrong_min_uncertainty) ->
 
     In :func:`explore_world`, with ``lagolib.lago.regularize(graph, tree)`` for the odometric and
     the minimum-uncertainty tree, a chord's ``k`` is wrong when :func:`wrong_k` says so.  Both
-    answers are compared exactly (they are values of the grid); prints both thresholds, and the
-    noise at which LAGO starts warning (a margin below 0.1 turns).  Diagnosed: the warning's
+    answers are compared exactly (they are values of the grid); a right answer prints both
+    thresholds and the noise at which LAGO starts warning (a margin below 0.1 turns), a wrong
+    one has the warning levels as its last hint.  Diagnosed: the warning's
     noise level given instead of the failure's, the two trees swapped, a value not on the grid.
     """
     ex = "5.4"
@@ -564,23 +674,153 @@ def check_noise_tolerance(first_wrong_odometric, first_wrong_min_uncertainty) ->
             return verdict(ex, NOT_ATTEMPTED)
         g = got  # read by @check as one finite real number
         other = "min_uncertainty" if tree == "odometric" else "odometric"
+        theirs = answers[other]
+        swapped = (
+            isinstance(theirs, float)
+            and abs(g - th[other]["wrong"]) < 1e-6
+            and abs(theirs - th[tree]["wrong"]) < 1e-6
+        )
+        read = "read the smallest slider value at which the tree's 'wrong k' count leaves 0."
+        warned = (
+            f"where each tree starts to warn (a margin below 0.1 turns): odometric at σθ = "
+            f"{th['odometric']['warn']:.2f}, min_uncertainty at {th['min_uncertainty']['warn']:.2f}"
+            " rad; the first wrong k comes a few slider steps later."
+        )
         if abs(g - th[tree]["warn"]) < 1e-6:
             problem = (
                 f"{name} = {g:.2f} is where the {tree!r} tree's smallest margin drops below 0.1 "
                 "turns — where LAGO starts to warn — but every k is still right there."
             )
-            hint = "keep raising σθ until the 'wrong k' count of that tree leaves 0."
-        elif abs(g - th[other]["wrong"]) < 1e-6:
-            problem = f"{name} = {g:.2f} is the other tree's threshold: swapped?"
-            hint = "first_wrong_odometric belongs to tree='odometric'."
+            hint = ("keep raising σθ until the 'wrong k' count of that tree leaves 0.",)
+        elif swapped:
+            problem = "your two thresholds are swapped."
+            hint = ("first_wrong_odometric belongs to tree='odometric'.",)
         elif min(abs(g - s) for s in SIGMA_GRID) > 1e-6:
             problem = f"{name} = {g!r} is not one of the slider's values (0.02, 0.04, …, 0.60)."
-            hint = "read the smallest slider value at which the tree's 'wrong k' count leaves 0."
+            hint = (read, warned)
         elif g < ref:
             problem = f"at {name} = {g:.2f} every k of the {tree!r} tree is still right."
-            hint = "raise σθ further."
+            hint = ("raise σθ further, one slider step at a time.", read, warned)
         else:
             problem = f"the {tree!r} tree already picks a wrong k at a smaller σθ than {g:.2f}."
-            hint = "lower σθ step by step: you want the first value with a wrong k."
+            hint = ("lower σθ step by step: you want the first value with a wrong k.", warned)
         return verdict(ex, problem, hint=hint)
     return verdict(ex, None, correct=summary)
+
+
+# --- derive exercises ---
+# Exercise 5.5 (derive) — :func:`check_blue_variance`: the variance of θ̂_2 in the smallest loop,
+# 0 → 1 → 2 (odometry, variances a and b) closed by 0 → 2 (variance c), from the BLUE's
+# covariance P_θ̂ = (A P_δ^-1 A^T)^-1 (Carlone et al. 2011, eq. 13), as a formula in a, b, c.
+
+import sympy as _sp  # noqa: E402
+
+from lagolib.exercises._derive import Formula, formula_comparison  # noqa: E402
+
+#: exercise 5.5's symbols: the orientation variances of the edges 0 → 1, 1 → 2 and 0 → 2
+VARIANCE_SYMBOLS = _sp.symbols("a b c", positive=True)
+#: exercise 5.5's graph: the odometry 0 → 1 → 2 and the loop closure 0 → 2
+TRIANGLE_EDGES = ((0, 1), (1, 2), (0, 2))
+
+
+def triangle_graph(variances=(1.0, 1.0, 1.0), turns=(0.3, -0.2, 0.1)) -> PoseGraph:
+    """Exercise 5.5's graph with numbers: orientation variances and measured turns per edge.
+
+    Parameters
+    ----------
+    variances : sequence of 3 floats
+        ``P_δ`` of the edges 0 → 1, 1 → 2, 0 → 2 (rad²).
+    turns : sequence of 3 floats
+        Their measured relative orientations ``δ`` (rad).
+
+    Returns
+    -------
+    PoseGraph
+        3 poses, 3 edges; position information 1, orientation information ``1 / variance``.
+    """
+    variances = [
+        check_real(v, "variances", "triangle_graph", minimum=0.0, strict=True) for v in variances
+    ]
+    info = np.zeros((3, 3, 3))
+    info[:, 0, 0] = info[:, 1, 1] = 1.0
+    info[:, 2, 2] = 1.0 / np.asarray(variances)
+    z = np.zeros((3, 3))
+    z[:, 0] = 1.0
+    z[:, 2] = turns
+    return PoseGraph(np.zeros((3, 3)), np.array(TRIANGLE_EDGES), z, info)
+
+
+def blue_variance_reference():
+    """``Var θ̂_2``: entry (2, 2) of ``P_θ̂ = (A P_δ^-1 A^T)^-1`` (Carlone et al. 2011, eq. 13).
+
+    ``A`` is lagolib's reduced incidence matrix of :func:`triangle_graph` (rows θ_1, θ_2; one
+    column per edge), ``P_δ = diag(a, b, c)``; sympy inverts the 2×2 information matrix.
+    """
+    a, b, c = VARIANCE_SYMBOLS
+    A = _sp.Matrix(topology.reduced_incidence_matrix(triangle_graph()).toarray()).applyfunc(
+        lambda v: _sp.Integer(round(v))
+    )
+    information = A * _sp.diag(a, b, c).inv() * A.T
+    return _sp.factor(_sp.simplify(information.inv()[1, 1]))
+
+
+def _blue_variance_slips():
+    """Known wrong answers of exercise 5.5 and the sentence that names each."""
+    a, b, c = VARIANCE_SYMBOLS
+    return [
+        (
+            a * (b + c) / (a + b + c),
+            "that is the variance of θ̂_1, the pose in the middle; the exercise asks for θ̂_2, "
+            "the pose the loop closure reaches.",
+        ),
+        (
+            a + b,
+            "that is the variance of the odometry alone (0 → 1 → 2): the loop closure 0 → 2 "
+            "also measures θ_2, and the BLUE uses it.",
+        ),
+        (
+            c,
+            "that is the loop closure's variance alone: the odometry 0 → 1 → 2 also measures "
+            "θ_2, and the BLUE uses it.",
+        ),
+        (
+            1 / (1 / a + 1 / b + 1 / c),
+            "that combines the three edges as if each measured θ_2 on its own; the two "
+            "odometry edges measure it only together, one after the other.",
+        ),
+    ]
+
+
+_BLUE_VARIANCE_HINTS = (
+    "eq. (13): P_θ̂ = (A P_δ^-1 A^T)^-1. A has a row for θ_1 and one for θ_2 (the anchor θ_0 "
+    "has none) and a column per edge (−1 at its tail, +1 at its head); P_δ = diag(a, b, c). "
+    "sympy does the algebra: (A * P.inv() * A.T).inv()[1, 1].",
+    "the information matrix A P_δ^-1 A^T is [[1/a + 1/b, −1/b], [−1/b, 1/b + 1/c]]; the (2, 2) "
+    "entry of the inverse of [[p, q], [q, s]] is p / (p s − q²).",
+    "check your formula against intuition: θ_2 is reached by two independent routes, the "
+    "odometry (variance a + b) and the loop closure (variance c), and the BLUE combines "
+    "independent estimates like resistors in parallel.",
+)
+
+
+@check("5.5", var_theta2=Formula(VARIANCE_SYMBOLS, example="a*b/(a + 2*c)"))
+def check_blue_variance(var_theta2) -> bool:
+    """Exercise 5.5: ``Var θ̂_2`` of the 3-pose loop as a formula in ``a``, ``b``, ``c``.
+
+    The answer is a string sympy reads or a sympy expression in :data:`VARIANCE_SYMBOLS` (all
+    positive).  It is compared with :func:`blue_variance_reference` by
+    :func:`lagolib.exercises._derive.formula_comparison`: a wrong formula gets the term (or the
+    denominator) that is wrong, never the reference.
+    """
+    result = formula_comparison(
+        var_theta2,
+        blue_variance_reference(),
+        symbols=VARIANCE_SYMBOLS,
+        name="your Var θ̂_2",
+        slips=_blue_variance_slips(),
+    )
+    if result.problem is not None:
+        return verdict("5.5", result.problem, hint=_BLUE_VARIANCE_HINTS)
+    return verdict(
+        "5.5", None, correct=f"your Var θ̂_2 is entry (2, 2) of eq. (13)'s P_θ̂: {result.detail}."
+    )

@@ -15,8 +15,9 @@ exercise   kind       check
 ``anisotropic_loop(8.0)``) with any anisotropy ratio, so that exercises 6.3 and 6.4 and their
 checks look at the same graphs.
 
-Every check prints one line, ``Exercise 6.k — correct: …``, ``— not yet: …`` (what is wrong, by
-how much, and a hint) or ``— not attempted yet: …``, and returns True or False; it never raises on
+Every check prints one line, ``Exercise 6.k — correct: …``, ``— not yet: …`` (what is wrong and by
+how much, never the answer; ``hint(…)`` tells more, one level per call) or
+``— not attempted yet: …``, and returns True or False; it never raises on
 a wrong answer (see :mod:`lagolib.exercises._feedback`).
 """
 
@@ -48,6 +49,9 @@ __all__ = [
     "check_closer",
     "check_anisotropy_sweep",
     "SWEEP_RATIOS",
+    "INFORMATION_SYMBOLS",
+    "world_information_reference",
+    "check_world_information",
 ]
 
 #: The anisotropy ratios of exercise 6.4's sweep (σ_across / σ_along).
@@ -172,17 +176,24 @@ def _frame_cases():
 
 
 def _diagnose_frame(got, Omega, theta_z, expected):
-    """The sentence saying what is wrong with ``got`` (not equal to ``expected``), and a hint."""
+    """The sentence saying what is wrong with ``got`` (not equal to ``expected``), and the hint
+    levels (a tuple)."""
     problem = compare_array(got, expected, name="your matrix")
     if problem is None:
         return None, ""
     hint = (
+        "try your function on θ_z = π/2 and Ω = diag(100, 1, 10): rotating the frame by a "
+        "quarter turn, the 100 must move to the y entry.",
         "G = blockdiag(R(θ_z), 1) is 3×3: the rotation by θ_z acts on x and y, the heading is "
-        "left alone. Try your function on θ_z = π/2 and Ω = diag(100, 1, 10): the 100 must move "
-        "to the y entry."
+        "left alone; and an information matrix rotates on both sides, G Ω Gᵀ.",
+        "build G from np.eye(3) with se2.rotation(θ_z) in its top-left 2×2 block, then "
+        "multiply G, Ω and Gᵀ in that order.",
     )
     if got.shape == (2, 2):
-        return problem, "return the whole 3×3 information: the heading row and column too."
+        return problem, (
+            "return the whole 3×3 information: the heading row and column too.",
+            *hint[1:],
+        )
     if got.shape != (3, 3):
         return problem, hint
     g = got  # a float array: call_student read it
@@ -191,7 +202,8 @@ def _diagnose_frame(got, Omega, theta_z, expected):
         return (
             "your matrix is G Ω⁻¹ Gᵀ — the covariance in frame i, not the information. The "
             "exercise asks for the information, which rotates the same way: G Ω Gᵀ.",
-            "no inverse is needed: rotating a covariance or an information is the same product.",
+            ("no inverse is needed: rotating a covariance or an information is the same "
+             "product.", *hint[1:]),
         )
     if (
         np.allclose(g[:2, 2], 0.0, atol=1e-9)
@@ -202,13 +214,15 @@ def _diagnose_frame(got, Omega, theta_z, expected):
             "your matrix has zeros in its position–heading entries [:2, 2] and [2, :2], but "
             "this Ω correlates position and heading and G Ω Gᵀ keeps that correlation. (Dropping "
             "it is the next step, split_information — not this one.)",
-            "convert the whole 3×3 matrix; nothing is dropped in a change of frame.",
+            ("convert the whole 3×3 matrix; nothing is dropped in a change of frame.",
+             *hint[1:]),
         )
     if _close(g, G.T @ Omega @ G):
         return (
             "your matrix is Gᵀ Ω G — the conversion the other way, frame i → g2o "
             "(se2.information_from_frame_i); you rotated by −θ_z.",
-            "the g2o error is e = Gᵀ r (r the frame-i residual), so eᵀ Ω e = rᵀ (G Ω Gᵀ) r.",
+            ("the g2o error is e = Gᵀ r (r the frame-i residual), so eᵀ Ω e = rᵀ (G Ω Gᵀ) r.",
+             *hint[1:]),
         )
     if _close(g, G @ Omega) or _close(g, Omega @ G.T) or _close(g, G.T @ Omega):
         return (
@@ -223,10 +237,11 @@ def _diagnose_frame(got, Omega, theta_z, expected):
         )
     if not np.isclose(g[2, 2], Omega[2, 2], rtol=1e-7, atol=1e-9):
         return (
-            f"the heading entry [2, 2] changed from {Omega[2, 2]:.6g} to {g[2, 2]:.6g}. A "
+            f"the heading entry [2, 2] changed from Ω's {Omega[2, 2]:.6g} to {g[2, 2]:.6g}. A "
             "change of frame in the plane rotates x and y only; the θ row and column are "
             "not rotated into anything.",
-            "G's bottom-right entry is 1 and the rest of its last row and column is 0.",
+            ("G's bottom-right entry is 1 and the rest of its last row and column is 0.",
+             *hint[1:]),
         )
     # rotated by some other angle phi?  The cross terms rotate by it: g[:2, 2] = R(phi) Omega[:2, 2]
     a, b = Omega[:2, 2], g[:2, 2]
@@ -242,16 +257,17 @@ def _diagnose_frame(got, Omega, theta_z, expected):
                 why = ""
             return (
                 f"your matrix is Ω rotated by {phi:+.4f} rad, but the measured angle is "
-                f"θ_z = {theta_z:+.4f} rad{why}.",
-                "rotate by θ_z itself, the measurement's angle (not the pose's).",
+                f"θ_z = {theta_z:+.4f} rad{why}" + ("" if why.endswith("?") else "."),
+                ("rotate by θ_z itself, the measurement's angle (not the pose's), in radians.",
+                 *hint[1:]),
             )
     ref_xy = expected[:2, :2]
     if _close(g[:2, :2], ref_xy) and _close(g[:2, 2], Omega[:2, 2]):
         return (
             "the position block is right, but the position–heading entries [:2, 2] and [2, :2] "
             "were left as in Ω. G rotates them too: (G Ω Gᵀ)[:2, 2] = R(θ_z) Ω[:2, 2].",
-            "build the whole 3×3 G and compute G @ Omega @ G.T, instead of rotating the 2×2 "
-            "block alone.",
+            ("build the whole 3×3 G and rotate the whole Ω with it, instead of rotating the "
+             "2×2 block alone.", *hint[2:]),
         )
     return problem, hint
 
@@ -351,13 +367,19 @@ def _diagnose_phase2(out, theta_i, Delta_l, Omega_Delta, Dg, Jr, Wr):
             problem = "Delta_g equals Δ^l: it is still in frame i."
         elif _close(got_Dg, R.T @ Delta_l):
             problem = "Delta_g is R(θ̂_i)ᵀ Δ^l: rotated the wrong way (by −θ̂_i)."
-        return problem, "Δ^g = R(θ̂_i) Δ^l (eq. 9): from the frame of pose i into the world frame."
+        return problem, (
+            "Δ^l is measured in the frame of pose i; Δ^g is the same vector in the world frame.",
+            "Δ^g = R(θ̂_i) Δ^l (eq. 9), with se2.rotation(theta_i) — θ̂_i may be several turns, "
+            "which the rotation does not mind.",
+        )
     # J = ∂Δ^g/∂θ_i, eq. (11)
     problem = compare_array(got_J, Jr, name="J")
     if problem is not None:
         hint = (
+            "J is the derivative of Δ^g = R(θ) Δ^l by θ at θ̂_i: only R(θ) depends on θ.",
             "differentiate R(θ) entry by entry and compare with S R(θ), S = [[0, -1], [1, 0]] "
-            "(eq. 11); then ask which vector the derivative of R(θ) Δ^l multiplies — a 2-vector."
+            "(eq. 11); then ask which vector the derivative of R(θ) Δ^l multiplies — a 2-vector.",
+            "dR/dθ = S R(θ), so J = S R(θ̂_i) Δ^l: S applied to a vector you already have.",
         )
         if _close(got_J, -Jr):
             problem = "J has the opposite sign of the reference: check the sign of S (or of sin)."
@@ -370,8 +392,12 @@ def _diagnose_phase2(out, theta_i, Delta_l, Omega_Delta, Dg, Jr, Wr):
     problem = compare_array(got_W, Wr, name="W")
     if problem is not None:
         hint = (
-            "W is the inverse of P_Δg = R(θ̂_i) P_Δ R(θ̂_i)ᵀ (section 3); with R⁻¹ = Rᵀ the inverse "
-            "is again a rotated matrix, and no matrix needs inverting."
+            "W is an information matrix in the world frame: the inverse of the covariance "
+            "P_Δg = R(θ̂_i) P_Δ R(θ̂_i)ᵀ (section 3).",
+            "with R⁻¹ = Rᵀ the inverse of R P_Δ Rᵀ is again a rotated matrix, and no matrix "
+            "needs inverting: Ω_Δ = P_Δ⁻¹ is given.",
+            "W = (R P_Δ Rᵀ)⁻¹ = R P_Δ⁻¹ Rᵀ: rotate Ω_Δ on both sides, R on the left, Rᵀ on the "
+            "right.",
         )
         if _close(got_W, Omega_Delta):
             problem = "W equals Ω_Δ: it is still the frame-i information."
@@ -454,7 +480,8 @@ def check_closer(closer):
     Computes LAGO and Gauss–Newton from it (``_lago_gap``) on ``anisotropic_loop(1.0)`` (the
     isotropic twin) and ``anisotropic_loop(8.0)`` (section 1's graph): same robot, same noise
     draws, same ellipse areas.  The gap is ``χ²(LAGO) − χ²(optimum)``; the answer is the graph
-    with the smaller gap (``"same"`` if they are within 1 %).  Prints both gaps either way.
+    with the smaller gap (``"same"`` if they are within 1 %).  Prints both gaps with a right
+    answer; after a wrong one they are the last hint level.
 
     Parameters
     ----------
@@ -485,9 +512,14 @@ def check_closer(closer):
         return verdict(ex, problem, hint='write closer = "isotropic", "anisotropic" or "same".')
     return verdict(
         ex,
-        f"you predicted {closer!r}, but {facts}",
-        hint="eq. (18) holds the weights (R̂ P_Δ R̂ᵀ)⁻¹ at θ̂, while the true cost rotates "
-        "them with θ. For which P_Δ does rotating it change nothing?",
+        f"closer = {closer!r} is not where LAGO lands closer to the Gauss–Newton optimum.",
+        hint=(
+            "think of Theorem 1: LAGO is exact when the weights it holds fixed do not depend on "
+            "the orientations.",
+            "eq. (18) holds the weights (R̂ P_Δ R̂ᵀ)⁻¹ at θ̂, while the true cost rotates "
+            "them with θ. For which P_Δ does rotating it change nothing?",
+            "the check's numbers: " + facts,
+        ),
     )
 
 
@@ -531,27 +563,38 @@ def check_anisotropy_sweep(gap_grows, distance_grows, gap_ratio):
     if bool(gap_grows) != exp_gap:
         return verdict(
             ex,
-            f"gap_grows is {bool(gap_grows)}, but the χ² gaps over the ratios "
-            f"{list(SWEEP_RATIOS)} are {gap_txt}"
-            + (": each is larger than the one before." if exp_gap else ": not every step grows."),
-            hint="compare each gap printed by the sweep cell with the one before it.",
+            f"gap_grows = {bool(gap_grows)} is not what the sweep shows: 'grows' means larger "
+            "at every step, from each ratio to the next.",
+            hint=(
+                "compare each gap printed by the sweep cell with the one before it.",
+                f"the check's χ² gaps over the ratios {list(SWEEP_RATIOS)}: {gap_txt}.",
+            ),
         )
     if bool(distance_grows) != exp_dist:
         steps = np.flatnonzero(np.diff(dists) <= 0)
         return verdict(
             ex,
-            f"distance_grows is {bool(distance_grows)}, but the largest distances [mm] are "
-            f"{dist_txt}"
-            + (
-                f": it falls from ratio {SWEEP_RATIOS[steps[0]]} to {SWEEP_RATIOS[steps[0] + 1]}."
-                if steps.size
-                else ": each is larger than the one before."
+            f"distance_grows = {bool(distance_grows)} is not what the sweep shows: 'grows' "
+            "means larger at every step, from each ratio to the next.",
+            hint=(
+                "read the right panel (or the distance column) from left to right.",
+                f"the check's largest distances [mm] over the ratios {list(SWEEP_RATIOS)}: "
+                f"{dist_txt}"
+                + (
+                    f" — it falls from ratio {SWEEP_RATIOS[steps[0]]} to "
+                    f"{SWEEP_RATIOS[steps[0] + 1]}."
+                    if steps.size
+                    else "."
+                ),
             ),
-            hint="read the right panel (or the distance column) from left to right.",
         )
     problem = compare_number(gap_ratio, ratio, name="gap_ratio", rtol=0.05)
     if problem is not None:
-        hint = "gap_ratio is the gap at ratio 64 divided by the gap at ratio 1."
+        hint = (
+            "gap_ratio is the gap at ratio 64 divided by the gap at ratio 1 — the last row of "
+            "the table over the first.",
+            f"the check's χ² gaps over the ratios {list(SWEEP_RATIOS)}: {gap_txt}.",
+        )
         got = gap_ratio  # read by @check as one finite real number
         if abs(got * ratio - 1) <= 0.05:
             problem += " It is the inverse of the reference."
@@ -575,4 +618,90 @@ def check_anisotropy_sweep(gap_grows, distance_grows, gap_ratio):
         None,
         correct=f"the χ² gap grows at every step ({gap_txt}), {ratio:.3g} times from ratio 1 to "
         f"64, while the largest distance from the optimum [mm] goes {dist_txt}.",
+    )
+
+
+# --- derive exercises ---
+# Exercise 6.5 (derive) — :func:`check_world_information`: the off-diagonal entry W_xy of an edge's
+# position information carried into the world frame by phase 2, W = R(θ) diag(a, b) R(θ)^T
+# (Carlone et al. 2011, §IV-C: P_Δg = R̂ P_Δl R̂^T, whose inverse rotates the same way), as a
+# formula in a, b and θ.
+
+import sympy as _sp  # noqa: E402
+
+from lagolib import symbolic as _symbolic  # noqa: E402
+from lagolib.exercises._derive import Formula, formula_comparison  # noqa: E402
+
+#: exercise 6.5's symbols: the information along x_i and y_i (a, b > 0), and θ = θ̂_i
+INFORMATION_SYMBOLS = (*_sp.symbols("a b", positive=True), _sp.Symbol("theta", real=True))
+
+
+def world_information_reference():
+    """``W_xy``: entry (1, 2) of ``W = R(θ) diag(a, b) R(θ)^T`` (phase 2's ``P_Δg^-1``).
+
+    ``R(θ)`` is the rotation block of :func:`lagolib.symbolic.v2t`; sympy multiplies the three
+    matrices.
+    """
+    a, b, theta = INFORMATION_SYMBOLS
+    R = _symbolic.v2t((0, 0, theta))[:2, :2]
+    return _sp.factor(_sp.expand((R * _sp.diag(a, b) * R.T)[0, 1]))
+
+
+def _world_information_slips():
+    """Known wrong answers of exercise 6.5 and the sentence that names each."""
+    a, b, theta = INFORMATION_SYMBOLS
+    R = _symbolic.v2t((0, 0, theta))[:2, :2]
+    backwards = (R.T * _sp.diag(a, b) * R)[0, 1]
+    covariance = (R * _sp.diag(1 / a, 1 / b) * R.T)[0, 1]
+    return [
+        (
+            backwards,
+            "that is the entry of R(θ)^T diag(a, b) R(θ): the rotation the other way round, "
+            "world → frame i. Phase 2 carries frame i into the world.",
+        ),
+        (
+            covariance,
+            "that is the entry of the rotated covariance R diag(1/a, 1/b) R^T; the exercise asks "
+            "for the information, which rotates the same way without any inverse.",
+        ),
+        (
+            (R * _sp.diag(a, b) * R.T)[0, 0],
+            "that is W_xx, the diagonal entry in row 1; the exercise asks for the off-diagonal "
+            "entry W_xy (row 1, column 2).",
+        ),
+    ]
+
+
+_WORLD_INFORMATION_HINTS = (
+    "W = R(θ) diag(a, b) R(θ)^T, as in exercise 6.2 (information rotates like covariance). "
+    "Multiply the three 2×2 matrices and take row 1, column 2 — or let sympy do it with "
+    "sp.Matrix and sp.diag.",
+    "R(θ) diag(a, b) = [[a cos θ, −b sin θ], [a sin θ, b cos θ]]; W_xy is its first row times "
+    "the second column of R(θ)^T, which is (sin θ, cos θ).",
+    "test your formula on special cases: W_xy = 0 for a circle (a = b, the same in every frame) "
+    "and for θ = 0 or θ = π/2 (the axes line up); it is largest in size at θ = π/4.",
+)
+
+
+@check("6.5", W_xy=Formula(INFORMATION_SYMBOLS, example="a*cos(theta)**2 - 2*b"))
+def check_world_information(W_xy) -> bool:
+    """Exercise 6.5: the off-diagonal entry of ``R(θ) diag(a, b) R(θ)^T`` as a formula.
+
+    The answer is a string sympy reads or a sympy expression in :data:`INFORMATION_SYMBOLS`
+    (``a``, ``b`` positive; ``θ`` may be written ``theta``).  It is compared with
+    :func:`world_information_reference` by
+    :func:`lagolib.exercises._derive.formula_comparison` (``sin(2θ)/2`` is ``sin θ cos θ``); a
+    wrong formula gets the term that is wrong, never the reference.
+    """
+    result = formula_comparison(
+        W_xy,
+        world_information_reference(),
+        symbols=INFORMATION_SYMBOLS,
+        name="your W_xy",
+        slips=_world_information_slips(),
+    )
+    if result.problem is not None:
+        return verdict("6.5", result.problem, hint=_WORLD_INFORMATION_HINTS)
+    return verdict(
+        "6.5", None, correct=f"your W_xy is the entry of R diag(a, b) R^T: {result.detail}."
     )

@@ -52,6 +52,10 @@ __all__ = [
     "SIGMA_SWEEP",
     "DECIDES",
     "weighted_gap",
+    "GRADIENT_SYMBOLS",
+    "sincos_edge_error",
+    "gradient_entry_reference",
+    "check_gradient_entry",
 ]
 
 
@@ -162,8 +166,12 @@ def check_sincos_error(sincos_error) -> bool:
     """
     ex = "7.1"
     hint = (
+        "f_ij is pose j seen from pose i: the displacement t_j − t_i rotated into i's frame, "
+        "and the relative heading θ_j − θ_i as its cosine and sine; e_ij = f_ij − δ̂_ij (eq. 3).",
+        "R(θ_i)ᵀ = [[c_i, s_i], [−s_i, c_i]]; cos(θ_j − θ_i) and sin(θ_j − θ_i) expand with the "
+        "angle-difference formulas into products of c_i, s_i, c_j, s_j.",
         "with dx = x_j − x_i, dy = y_j − y_i: f_ij = [c_i dx + s_i dy, −s_i dx + c_i dy, "
-        "c_j c_i + s_j s_i, s_j c_i − c_j s_i] (eq. 2), and e_ij = f_ij − δ̂_ij (eq. 3)."
+        "c_j c_i + s_j s_i, s_j c_i − c_j s_i] (eq. 2).",
     )
     p_i, p_j, delta, (q_i, q_j, z) = _edge_cases()
     expected = _reference_sincos_errors(q_i, q_j, z)
@@ -180,7 +188,11 @@ def check_sincos_error(sincos_error) -> bool:
                     f"\n    (edge {k}: p_i = {np.round(args[0], 4)}, p_j = {np.round(args[1], 4)},"
                     f" delta_ij = {np.round(args[2], 4)})"
                 )
-            return verdict(ex, problem, hint="return a numpy array of 4 real numbers for one edge.")
+            return verdict(
+                ex,
+                problem,
+                hint=("return a numpy array of 4 real numbers for one edge.", *hint),
+            )
         got[k] = value  # a wrong value is diagnosed below, on all edges together
 
     if _close(got, expected):
@@ -334,14 +346,14 @@ def _newton_mistakes(A, b, t, rho):
     add(
         _jacobian(A, t, rho, rho_sign=-1.0),
         F,
-        "your ∂F/∂ρ has the wrong sign: row 2i−1 of F is α_i − ρ_i c_i, so its derivative by "
-        "ρ_i is −c_i; row 2i is β_i + ρ_i s_i, derivative +s_i.",
+        "your ∂F/∂ρ has the wrong sign: differentiate row 2i−1 of F, α_i − ρ_i c_i, and row "
+        "2i, β_i + ρ_i s_i, by ρ_i once more.",
     )
     add(
         _jacobian(A, t, rho, constraint_scale=2.0),
         F,
-        mismatch := "your constraint rows and their Jacobian do not match: F_i = c_i² + s_i² − 1 "
-        "has the row (2c_i, 2s_i), F_i = (c_i² + s_i² − 1)/2 the row (c_i, s_i).",
+        mismatch := "your constraint rows and their Jacobian do not match: one of them has the "
+        "factor ½ of F_i = (c_i² + s_i² − 1)/2 and the other does not.",
     )
     add(J, np.concatenate([F[: 2 * n], 2 * F[2 * n :]]), mismatch)
     norm = np.linalg.norm(t1.reshape(n, 2), axis=1, keepdims=True)
@@ -412,8 +424,14 @@ def check_newton_step(newton_step) -> bool:
     """
     ex = "7.2"
     hint = (
+        "Newton's step: evaluate F and its Jacobian J = ∂F/∂[t; ρ] at the current point, solve "
+        "J Δ = −F (3n equations, 3n unknowns) and return the new point, not Δ.",
+        "row 2i−1 of the first 2n rows of F is α_i − ρ_i c_i and row 2i is β_i + ρ_i s_i "
+        "(R alternates the sign); constraint row i is (c_i² + s_i² − 1)/2 and does not depend "
+        "on ρ.",
         "stack F = [A t + b − R t; (c_i² + s_i² − 1)/2] and J = [[A − R, ∂F/∂ρ], [S, 0]] "
-        "(3n × 3n; S has (c_i, s_i) in row i), solve J Δ = −F, return (t + Δt, ρ + Δρ)."
+        "(3n × 3n; S has (c_i, s_i) in row i; ∂F/∂ρ has −c_i and +s_i in the rows of pose i), "
+        "solve J Δ = −F, return (t + Δt, ρ + Δρ).",
     )
     A, b, t, rho, t_on, rho_on, solution = _newton_problem()
     n = rho.size
@@ -510,8 +528,9 @@ def check_closed_form_gap(prediction) -> bool:
 
     Computes, on the shipped ``grid100`` example (σ_xy = 0.05 m, σ_θ = 0.01 rad: an angle 25×
     more informative than a coordinate), the lecture notes' weighted χ² of the closed form (from
-    LAGO) and of Gauss–Newton's optimum, prints both and their ratio, and compares the band it
-    falls in with ``prediction``, one of :data:`GAP_BANDS`.
+    LAGO) and of Gauss–Newton's optimum, and compares the band their ratio falls in with
+    ``prediction``, one of :data:`GAP_BANDS`.  Both χ² and the ratio are printed with a right
+    answer; after a wrong one they are the last hint level.
 
     Parameters
     ----------
@@ -541,16 +560,23 @@ def check_closed_form_gap(prediction) -> bool:
         return verdict(ex, None, correct=numbers + ".")
     why = {
         GAP_BANDS[0]: "Gauss–Newton minimizes exactly this weighted χ²: nothing is below it.",
-        GAP_BANDS[1]: "That is what happens when Ω is a multiple of I; here an angle weighs 25× "
-        "a coordinate, and the closed form weighs them alike.",
-        GAP_BANDS[2]: "The gap is larger than that: the closed form trades the heavily weighted "
+        GAP_BANDS[1]: "'1 to 1.05' is what happens when Ω is a multiple of I; here an angle "
+        "weighs 25× a coordinate, and the closed form weighs them alike.",
+        GAP_BANDS[2]: "the gap is larger than that: the closed form trades the heavily weighted "
         "angular errors for position errors.",
-        GAP_BANDS[3]: "The gap is smaller than that.",
+        GAP_BANDS[3]: "the gap is smaller than that.",
     }[prediction]  # one of GAP_BANDS, as @check read it
+    problem = f"prediction = {prediction!r} is not the band the ratio falls in."
+    if prediction == GAP_BANDS[0]:
+        problem += " " + why  # a ratio below 1 is impossible: that is the diagnosis itself
     return verdict(
         ex,
-        f"you predicted {prediction!r}, but the {numbers}. {why}",
-        hint="which cost does each method minimize, and how different are the two costs here?",
+        problem,
+        hint=(
+            "which cost does each method minimize, and how different are the two costs here?",
+            why[:1].upper() + why[1:],
+            f"the check's numbers: {numbers}.",
+        ),
     )
 
 
@@ -608,24 +634,34 @@ def check_noise_gap(closest_sigma_theta, what_decides) -> bool:
         if hits:
             problem = (
                 f"at σ_θ = {closest_sigma_theta} the closed form's χ² is {gaps[hits[0]]:.3f} "
-                f"times the optimum's, not the smallest ratio in the sweep (that is "
-                f"{gaps.min():.4f})."
+                "times the optimum's, not the smallest ratio in the sweep."
             )
         else:
             problem = (
                 f"closest_sigma_theta should be one of the swept σ_θ {list(SIGMA_SWEEP)}, "
                 f"got {closest_sigma_theta!r:.40}."
             )
-        return verdict(ex, problem, hint="read the σ_θ of the smallest ratio off the first table.")
+        table = ", ".join(f"σ_θ = {s}: {r:.4f}" for s, r in zip(SIGMA_SWEEP, gaps))
+        return verdict(
+            ex,
+            problem,
+            hint=(
+                "read the σ_θ of the smallest ratio off the first table.",
+                f"the check's first sweep (σ_xy = {SIGMA_XY}), closed form / optimum: {table}.",
+            ),
+        )
     level_gap = max(abs(_gap(s, s) - 1.0) for s in SIGMA_SWEEP)  # the σ_θ = σ_xy sweep
     if what_decides != "ratio":  # one of DECIDES, as @check read it
         level = [_gap(s, s) for s in (SIGMA_SWEEP[0], SIGMA_SWEEP[-1])]
         return verdict(
             ex,
-            f"with σ_θ = σ_xy the ratio stays {level[0]:.6f} at σ = {SIGMA_SWEEP[0]} and "
-            f"{level[1]:.6f} at σ = {SIGMA_SWEEP[-1]}, 16 times more noise; with σ_xy fixed it "
-            f"ranges from {gaps.min():.4f} to {gaps.max():.3f}.",
-            hint="compare the two columns of the table: which one changes?",
+            f"what_decides = {what_decides!r} is not what the two sweeps show.",
+            hint=(
+                "compare the two columns of the table: which one changes?",
+                f"with σ_θ = σ_xy the ratio stays {level[0]:.6f} at σ = {SIGMA_SWEEP[0]} and "
+                f"{level[1]:.6f} at σ = {SIGMA_SWEEP[-1]}, 16 times more noise; with σ_xy "
+                f"fixed it ranges from {gaps.min():.4f} to {gaps.max():.3f}.",
+            ),
         )
     return verdict(
         ex,
@@ -635,3 +671,74 @@ def check_noise_gap(closest_sigma_theta, what_decides) -> bool:
         f"the ratio within {level_gap:.0e} of 1 over the whole sweep, 16 times more noise: the "
         "ratio of the noises decides, not their level.",
     )
+
+
+# --- derive exercises ---
+# Exercise 7.5 (derive) — :func:`check_gradient_entry`: one entry of the gradient of Lodi
+# Rizzini's χ² (eq. 14–15), ∂F/∂c_i of one edge's F = e_ijᵀ e_ij with e_ij of eq. (2)–(3), the
+# four parameters (x, y, c, s) of each pose treated as independent, as the Lagrangian does.
+
+import sympy as _sp  # noqa: E402
+
+from lagolib.exercises._derive import Formula, formula_comparison  # noqa: E402
+
+#: exercise 7.5's symbols: pose i, pose j (x, y, c, s) and the measurement (x_z, y_z, c_z, s_z)
+GRADIENT_SYMBOLS = _sp.symbols("x_i y_i c_i s_i x_j y_j c_j s_j x_z y_z c_z s_z", real=True)
+
+
+def sincos_edge_error():
+    """``e_ij`` of Lodi Rizzini eq. (2)–(3) in :data:`GRADIENT_SYMBOLS`, a sympy 4-vector."""
+    xi, yi, ci, si, xj, yj, cj, sj, xz, yz, cz, sz = GRADIENT_SYMBOLS
+    dx, dy = xj - xi, yj - yi
+    f = _sp.Matrix([ci * dx + si * dy, -si * dx + ci * dy, cj * ci + sj * si, sj * ci - cj * si])
+    return f - _sp.Matrix([xz, yz, cz, sz])  # eq. (2) minus the measurement, eq. (3)
+
+
+def gradient_entry_reference():
+    """``∂F/∂c_i`` of ``F = e_ijᵀ e_ij`` (Lodi Rizzini eq. 14–15 for one edge), by sympy."""
+    e = sincos_edge_error()
+    return _sp.diff((e.T * e)[0, 0], GRADIENT_SYMBOLS[2])
+
+
+def _gradient_slips():
+    e = sincos_edge_error()
+    ci = GRADIENT_SYMBOLS[2]
+    half = _sp.diff((e.T * e)[0, 0], ci) / 2
+    position_only = _sp.diff((e[:2, 0].T * e[:2, 0])[0, 0], ci)
+    angle_only = _sp.diff((e[2:, 0].T * e[2:, 0])[0, 0], ci)
+    return [
+        (half, "that is half of it: the derivative of e² is 2e·∂e, and F sums the squares."),
+        (position_only, "only the position rows of e_ij are there: c_i also appears in the two "
+         "angular rows, c_j c_i + s_j s_i and s_j c_i − c_j s_i."),
+        (angle_only, "only the angular rows of e_ij are there: c_i also rotates t_j − t_i in "
+         "the two position rows."),
+    ]
+
+
+_GRADIENT_HINTS = (
+    "F = Σ_k e_k², so ∂F/∂c_i = 2 Σ_k e_k ∂e_k/∂c_i: find which of the four rows of e_ij "
+    "contain c_i, and differentiate each.",
+    "∂e/∂c_i = (x_j − x_i, y_j − y_i, c_j, s_j): each row of e_ij is linear in c_i.",
+    "so ∂F/∂c_i = 2 [e_1 (x_j − x_i) + e_2 (y_j − y_i) + e_3 c_j + e_4 s_j], each e_k written "
+    "out with eq. (2)–(3).",
+)
+
+
+@check("7.5", dF_dc_i=Formula(GRADIENT_SYMBOLS, example="2*(x_j - x_i)*c_i"))
+def check_gradient_entry(dF_dc_i) -> bool:
+    """Exercise 7.5: ``∂F/∂c_i`` of one edge's ``F = e_ijᵀ e_ij`` (Lodi Rizzini eq. 14–15).
+
+    The answer is a formula (a string sympy reads, or a sympy expression) in
+    :data:`GRADIENT_SYMBOLS`; it is compared with :func:`gradient_entry_reference` by symbolic
+    equivalence (:func:`lagolib.exercises._derive.formula_comparison`).
+    """
+    result = formula_comparison(
+        dF_dc_i,
+        gradient_entry_reference(),
+        symbols=GRADIENT_SYMBOLS,
+        name="your ∂F/∂c_i",
+        slips=_gradient_slips(),
+    )
+    if result.problem is not None:
+        return verdict("7.5", result.problem, hint=_GRADIENT_HINTS)
+    return verdict("7.5", None, correct=f"your ∂F/∂c_i is the gradient's entry: {result.detail}.")

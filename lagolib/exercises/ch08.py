@@ -14,8 +14,9 @@ exercise   kind       check
 :func:`angle_weight_sweep` computes exercise 8.3's sweep (the chapter's cell and the check use the
 same numbers).
 
-Every check prints one line, ``Exercise 8.k — correct: …``, ``— not yet: …`` (what is wrong, by
-how much, and a hint) or ``— not attempted yet: …``, and returns True or False; it never raises on
+Every check prints one line, ``Exercise 8.k — correct: …``, ``— not yet: …`` (what is wrong and by
+how much, never the answer; ``hint(…)`` tells more, one level per call) or
+``— not attempted yet: …``, and returns True or False; it never raises on
 a wrong answer (see :mod:`lagolib.exercises._feedback`).
 """
 
@@ -111,38 +112,49 @@ def _diagnose_eta(got, graph, poses, expected):
         return bool(np.isclose(x, y, rtol=1e-6, atol=1e-15))
 
     m = graph.m
+    method = (
+        "for every edge (i, j): E = Z⁻¹ X_i⁻¹ X_j (chapter 1's error, se2.between twice); "
+        "eta_c is the mean over all edges of ||t(E)||², eta_a the mean of θ(E)² with θ(E) "
+        "wrapped into (−π, π].",
+        "with x = poses and i, j = graph.edges.T: se2.between(x[i], x[j]) is X_i⁻¹ X_j for every "
+        "edge at once, and se2.between(graph.measurements, that) is Z⁻¹ X_i⁻¹ X_j; square, "
+        "sum the translation's two entries, average over the edges.",
+    )
     if near(gc, ea) and near(ga, ec):
         return (
             "your two numbers are swapped: the first should be eta_c (translation, m²), the "
             "second eta_a (angle, rad²).",
-            "return eta_c, eta_a — in that order.",
+            ("return eta_c, eta_a — in that order.",),
         )
     if near(gc, m * ec) or near(ga, m * ea):
         return (
             f"your numbers are {m} times too large — the sum over the {m} edges, not the mean.",
-            "eta is a mean over all constraints: divide by the number of edges (np.mean).",
+            ("eta is a mean over all constraints: divide by the number of edges (np.mean).",),
         )
     if near(gc, np.sqrt(ec)) or near(ga, np.sqrt(ea)):
         return (
             "your numbers are the square roots of the reference: a root mean square, not the "
             "mean squared error.",
-            "eta_c is the mean of ||t||², in m² — no square root.",
+            ("eta_c is the mean of ||t||², in m² — no square root.",),
         )
     t, a = _errors(graph, poses, wrap=False)
     if pc is None and near(ga, np.mean(a**2)):
         return (
-            f"eta_a is {ga:.6g}; the reference is {ea:.6g}: the angle errors were not wrapped. "
-            "Some headings here are stored 2π or 4π away from each other, so θ_j − θ_i − δ_ij "
-            "is off by whole turns.",
-            "wrap each angle error into (-π, π] with lagolib.se2.wrap_angle before squaring it.",
+            f"eta_a = {ga:.6g} is too large: the angle errors were not wrapped. Some headings "
+            "here are stored 2π or 4π away from each other, so θ_j − θ_i − δ_ij is off by whole "
+            "turns.",
+            ("wrap each angle error into (-π, π] with lagolib.se2.wrap_angle before squaring it.",),
         )
     tg, _ = _errors(graph, poses, frame="global")
     if pa is None and near(gc, np.mean(np.sum(tg**2, axis=1))):
         return (
-            f"eta_c is {gc:.6g}; the reference is {ec:.6g}: you compared t_j − t_i, a "
-            "difference in the world frame, with t_z, which is measured in the frame of pose i.",
-            "rotate first: R_iᵀ (t_j − t_i) − t_z (lagolib.se2.between(x_i, x_j) gives "
-            "R_iᵀ (t_j − t_i)).",
+            f"eta_c = {gc:.6g} is not right: you compared t_j − t_i, a difference in the world "
+            "frame, with t_z, which is measured in the frame of pose i.",
+            (
+                "rotate first: pose j seen from pose i (lagolib.se2.between(x_i, x_j) gives "
+                "R_iᵀ (t_j − t_i)), then compare it with the measurement.",
+                *method,
+            ),
         )
     e = np.column_stack([*_errors(graph, poses)[0].T, _errors(graph, poses)[1]])
     # the error in the measurement's frame: rotate the frame-i translation by R_z^T
@@ -152,7 +164,7 @@ def _diagnose_eta(got, graph, poses, expected):
         return (
             "your number is weighted by the information matrices (a χ²). The constraint-"
             "satisfaction metrics count every constraint equally, whatever its uncertainty.",
-            "square the plain translation and angle errors; leave graph.information out.",
+            ("square the plain translation and angle errors; leave graph.information out.",),
         )
     tr, ar = _errors(graph, poses)
     for mask, which in (
@@ -164,12 +176,13 @@ def _diagnose_eta(got, graph, poses, expected):
         ):
             return (
                 f"your numbers are means over the {which} only.",
-                f"eta averages over all {m} constraints, odometric edges and loop closures alike.",
+                (f"eta averages over all {m} constraints, odometric edges and loop closures "
+                 "alike.",),
             )
-    return (pc or pa), (
-        "for every edge (i, j): E = Z⁻¹ X_i⁻¹ X_j; eta_c = mean of ||t(E)||², eta_a = mean of "
-        "wrap(θ(E))². Compose the poses as transforms: first X_i⁻¹ X_j, then apply Z⁻¹ "
-        "(chapter 1's se2 helpers)."
+    return " ".join(x for x in (pc, pa) if x), (
+        "print your (eta_c, eta_a) next to lagolib.metrics.constraint_satisfaction on the "
+        "chapter's graph (the cell under the exercise does) and find which one differs.",
+        *method,
     )
 
 
@@ -211,9 +224,11 @@ def check_eta(eta):
             return verdict(
                 ex,
                 problem,
-                hint="the check calls eta(graph, poses) with a lagolib.PoseGraph and an (n, 3) "
-                "array, and expects `return eta_c, eta_a` (two real numbers); try your function "
-                "on such inputs.",
+                hint=(
+                    "the check calls eta(graph, poses) with a lagolib.PoseGraph and an (n, 3) "
+                    "array, and expects `return eta_c, eta_a` (two real numbers, or a numpy "
+                    "array of two); try your function on such inputs.",
+                ),
             )
         expected = tuple(constraint_satisfaction(g, poses))
         problem, hint = _diagnose_eta(got, g, poses, expected)
@@ -235,7 +250,7 @@ def check_smallest_sum(smallest, graph, sgd_poses):
     Computes LAGO and Gauss–Newton from LAGO on ``graph`` (which must have identity information
     on every edge) with lagolib, and ``eta_c + eta_a`` of the three estimates (``sgd_poses`` is
     the chapter's SGD run); the answer is the one with the smallest sum.  Prints the three sums
-    either way.
+    with a right answer; after a wrong one they are the last hint level.
 
     Parameters
     ----------
@@ -269,9 +284,13 @@ def check_smallest_sum(smallest, graph, sgd_poses):
         return verdict(ex, problem, hint='write smallest = "SGD", "LAGO" or "Gauss-Newton".')
     return verdict(
         ex,
-        f"you predicted {smallest!r}, but {facts}.",
-        hint="with identity information, what is χ² divided by the number of edges? Which of "
-        "the three methods minimizes χ²?",
+        f"smallest = {smallest!r} is not the estimate with the smallest eta_c + eta_a.",
+        hint=(
+            "with identity information, what is χ² divided by the number of edges?",
+            "with P_ij = I_3, χ² = m (eta_c + eta_a) (section 1): which of the three methods "
+            "minimizes χ²?",
+            f"the check's numbers: {facts}.",
+        ),
     )
 
 
@@ -354,7 +373,9 @@ def check_weight_sweep(eta_c_trend, eta_a_trend, eta_a_ratio, graph):
     ratio = float(table[0, 1] / table[-1, 1])
     hint = (
         "read the printed table from the top (w = 0.01) to the bottom (w = 100): does each "
-        "column go up at every row, down at every row, or neither?"
+        "column go up at every row, down at every row, or neither?",
+        "with information diag(1, 1, w) the optimum minimizes m (eta_c + w eta_a): the larger "
+        "w, the more an angle error costs compared with a translation error.",
     )
     for got, want, name in (
         (eta_c_trend, want_c, "eta_c_trend"),
@@ -362,10 +383,15 @@ def check_weight_sweep(eta_c_trend, eta_a_trend, eta_a_ratio, graph):
     ):
         problem = compare_choice(got, want, TREND_CHOICES, name=name)
         if problem is not None:
-            if not problem.startswith(f"{name} should be"):
-                col = table[:, 0] if name == "eta_c_trend" else table[:, 1]
-                problem += " The column reads " + ", ".join(f"{v:.3g}" for v in col) + "."
-            return verdict(ex, problem, hint=hint)
+            if problem.startswith(f"{name} should be"):
+                return verdict(ex, problem, hint=hint[:1])
+            col = table[:, 0] if name == "eta_c_trend" else table[:, 1]
+            column = (
+                f"the check's {name[:5]} column, w = {WEIGHTS[0]:g} … {WEIGHTS[-1]:g}: "
+                + ", ".join(f"{v:.3g}" for v in col)
+                + "."
+            )
+            return verdict(ex, problem, hint=(*hint, column))
     problem = compare_number(eta_a_ratio, ratio, name="eta_a_ratio", rtol=0.05)
     if problem is not None:
         if np.isclose(eta_a_ratio, 1.0 / ratio, rtol=0.05):  # a float: @check read it
@@ -373,7 +399,15 @@ def check_weight_sweep(eta_c_trend, eta_a_trend, eta_a_ratio, graph):
                 f"eta_a_ratio is {float(eta_a_ratio):.3g}, the inverse of the ratio asked for: "
                 f"eta_a at w = {WEIGHTS[0]} divided by eta_a at w = {WEIGHTS[-1]}."
             )
-        return verdict(ex, problem, hint="divide the first row's eta_a by the last row's.")
+        return verdict(
+            ex,
+            problem,
+            hint=(
+                f"divide the first row's eta_a (w = {WEIGHTS[0]:g}) by the last row's "
+                f"(w = {WEIGHTS[-1]:g}).",
+                "the check's eta_a column: " + ", ".join(f"{v:.4g}" for v in table[:, 1]) + ".",
+            ),
+        )
     return verdict(
         ex,
         None,

@@ -14,8 +14,9 @@ exercise   kind       check
 
 :func:`noise_sweep` computes exercise 9.3's sweep (the chapter's cell and the check share it).
 
-Every check prints one line, ``Exercise 9.k — correct: …``, ``— not yet: …`` (what is wrong, by
-how much, and a hint) or ``— not attempted yet: …``, and returns True or False; it never raises on
+Every check prints one line, ``Exercise 9.k — correct: …``, ``— not yet: …`` (what is wrong and by
+how much, never the answer; ``hint(…)`` tells more, one level per call) or
+``— not attempted yet: …``, and returns True or False; it never raises on
 a wrong answer (see :mod:`lagolib.exercises._feedback`).
 """
 
@@ -50,6 +51,9 @@ __all__ = [
     "check_multipliers",
     "check_certificate_reading",
     "check_noise_sweep",
+    "MULTIPLIER_SYMBOLS",
+    "multiplier_reference",
+    "check_multiplier_formula",
 ]
 
 #: The rotation noises σ_θ (rad) of exercise 9.3's sweep.
@@ -95,37 +99,48 @@ def _diagnose_multipliers(got, M, x, expected):
     problem = compare_array(got, expected, name="lambda", rtol=1e-7, atol=1e-9)
     if problem is None:
         return None, ""
+    levels = (
+        "λ_i = Re(conj(z_i) (M x)_{n+i}) (the statement); x = [t; z], so z_i is x[n + i] and "
+        "its row of M x is (M x)[n + i].",
+        "compute M x once (M @ x, a complex vector), take the last n entries of it and of x, "
+        "multiply them elementwise with x's conjugated, and keep the real part.",
+    )
     if matches(got, w.imag):
         return (
             "you took the imaginary part of conj(z_i) (M x)_{n+i}: that is the gradient of f "
             "along the circle |z_i| = 1, not the multiplier.",
-            "λ_i is the real part.",
+            ("λ_i is the real part.", *levels[1:]),
         )
     if matches(got, (x[n:] * Mx[n:]).real):
         return (
             "z_i is not conjugated: Re(z_i (M x)_{n+i}) is not the multiplier (it changes when "
             "the whole graph is rotated).",
-            "multiply by conj(z_i) (np.conj), the complex inner product of z_i with (M x)_{n+i}.",
+            ("multiply by conj(z_i) (np.conj), the complex inner product of z_i with "
+             "(M x)_{n+i}.", *levels[1:]),
         )
     if matches(got, (np.conj(x[:n]) * Mx[:n]).real):
         return (
             "you used the first n entries of x and M x: those are the translations t_i, which "
             "are not constrained.",
-            "the rotations z_i are x[n:], and their rows of M x are (M x)[n:].",
+            ("the rotations z_i are x[n:], and their rows of M x are (M x)[n:].", *levels[1:]),
         )
     if matches(got, np.abs(Mx[n:])):
         return (
             "you took |(M x)_{n+i}|. At a stationary point that is |λ_i|, but elsewhere (M x)_{n+i} "
             "also has a component along the circle, and the sign of λ_i is lost.",
-            "project (M x)_{n+i} on z_i: Re(conj(z_i) (M x)_{n+i}).",
+            ("project (M x)_{n+i} on z_i: Re(conj(z_i) (M x)_{n+i}).", *levels[1:]),
         )
     if matches(got, 2 * expected):
         return (
             "your multipliers are twice the reference: the gradient of x^H M x is 2 M x, but "
             "the Lagrangian's condition (M − Λ) x = 0 has no factor 2 on either side.",
-            "λ_i = Re(conj(z_i) (M x)_{n+i}), no factor 2.",
+            ("λ_i = Re(conj(z_i) (M x)_{n+i}), no factor 2.",),
         )
-    return problem, "λ_i = Re(conj(z_i) (M x)_{n+i}); x = [t; z], so z_i is x[n + i]."
+    return problem, (
+        "print your multipliers next to certify.multipliers on the chapter's small problem "
+        "(the cell under the exercise does) and see where they differ.",
+        *levels,
+    )
 
 
 def _complex_multipliers(got, M, x):
@@ -204,7 +219,8 @@ def check_certificate_reading(certified_point, lower_bound_P, problem, P, Q):
     certificates' verdicts (certified: the gap ``f - lower bound`` is at most the tolerance
     ``2 n eta0``), and ``lower_bound_P`` with ``P``'s lower bound
     ``sum(lambda) + n min(lambda_min, 0)`` to ``1e-4`` relative (numbers read off a print).
-    Prints both certificates either way.
+    Prints both certificates with a right answer; after a wrong ``certified_point`` they are the
+    last hint level.
 
     Parameters
     ----------
@@ -239,10 +255,15 @@ def check_certificate_reading(certified_point, lower_bound_P, problem, P, Q):
             return verdict(ex, wrong, hint='write certified_point = "P", "Q", "both" or "neither".')
         return verdict(
             ex,
-            f"you predicted {certified_point!r}, but {facts}.",
-            hint="a point is certified when its gap — f minus its lower bound "
-            "Σλ + n·min(λ_min, 0) — is at most the tolerance 2nη₀, tiny next to f (section 4). "
-            "Work out each point's bound from the printed numbers and compare it with its f.",
+            f"certified_point = {certified_point!r} is not what the two certificates say.",
+            hint=(
+                "a point is certified when its gap — f minus its lower bound "
+                "Σλ + n·min(λ_min, 0) — is at most the tolerance 2nη₀, tiny next to f "
+                "(section 4).",
+                "work out each point's bound from the printed numbers: a negative λ_min lowers "
+                "it by n·|λ_min|; then compare the bound with the point's f.",
+                f"the check's certificates: {facts}.",
+            ),
         )
     n = problem.n
     lam_sum = float(cP.multipliers.sum())
@@ -254,7 +275,12 @@ def check_certificate_reading(certified_point, lower_bound_P, problem, P, Q):
         def near(a, b):
             return bool(np.isclose(a, b, rtol=1e-4))
 
-        hint = "the bound is Σλ + n·min(λ_min, 0), with n the number of poses."
+        hint = (
+            "the bound is Σλ + n·min(λ_min, 0), with n the number of poses: read Σλ, n and the "
+            "smallest eigenvalue off P's printed line.",
+            f"P's numbers as the check reads them: Σλ = {lam_sum:.6f}, n = {n}, λ_min = "
+            f"{lam_min:.6g}.",
+        )
         if near(got, lam_sum) or near(got, cP.f):
             wrong = (
                 f"lower_bound_P is {got:.6g}: that is Σλ = f(P) itself, the bound of a certified "
@@ -342,7 +368,7 @@ def noise_sweep(sigmas=SWEEP_SIGMAS, seeds=SWEEP_SEEDS):
     return noise_sweep(sigmas, seeds)
 
 
-@check("9.3", first_uncertified=Real(), not_tight=Int())
+@check("9.3", first_uncertified=Real(), not_tight=Int(count_of="worlds"))
 def check_noise_sweep(first_uncertified, not_tight):
     """Check exercise 9.3: where the certificate first fails on the sweep, and how often the
     relaxation is not tight.
@@ -376,15 +402,28 @@ def check_noise_sweep(first_uncertified, not_tight):
     if wrong is not None:
         got = first_uncertified  # read by @check as one finite real number
         if np.any(np.isclose(sigmas, got)):
+            k = int(np.argmin(np.abs(sigmas - got)))
             wrong = (
-                f"first_uncertified is {got:g}; the certified fractions are {fractions}: the "
-                "first σθ below 1 is another one."
+                f"first_uncertified = {got:g}: "
+                + (
+                    "at that σθ every world is certified."
+                    if sw["certified"][k].all()
+                    else "some world already ends not certified at a smaller σθ."
+                )
+            )
+        elif not np.any(np.isclose(sigmas, got, rtol=1e-6)):
+            wrong = (
+                f"first_uncertified = {got:g} is not one of the swept σθ "
+                f"({', '.join(f'{s:g}' for s in sigmas)})."
             )
         return verdict(
             ex,
             wrong,
-            hint="read the printed certified fraction per σθ from the top: the first row "
-            "below 1.00.",
+            hint=(
+                "read the printed certified fraction per σθ from the top: the first row "
+                "below 1.00.",
+                f"the check's certified fractions: {fractions}.",
+            ),
         )
     wrong = compare_int(not_tight, want_nt, name="not_tight")
     if wrong is not None:
@@ -398,7 +437,12 @@ def check_noise_sweep(first_uncertified, not_tight):
         return verdict(
             ex,
             wrong,
-            hint="count the worlds whose printed reason says 'not tight' (the column 'tight?').",
+            hint=(
+                "count the worlds whose printed reason says 'not tight' (the column 'tight?'), "
+                "over the whole sweep: every σθ, every seed.",
+                f"the sweep has {sigmas.size * len(sw['seeds'])} worlds, {n_unc} of them not "
+                "certified; the 'tight?' column marks the ones whose relaxation is not tight.",
+            ),
         )
     return verdict(
         ex,
@@ -406,3 +450,71 @@ def check_noise_sweep(first_uncertified, not_tight):
         correct=f"certified fractions {fractions}; {want_nt} world(s) with a relaxation that "
         "is not tight.",
     )
+
+
+# --- derive exercises ---
+# Exercise 9.4 (derive) — :func:`check_multiplier_formula`: the multiplier λ_1 of section 4 for
+# the smallest rotation problem, f = w |z_1 − r z_0|² with r = e^{iθ_z}, z_k = e^{iφ_k}.
+
+import sympy as _sp  # noqa: E402
+
+from lagolib.exercises._derive import Formula, formula_comparison  # noqa: E402
+
+#: exercise 9.4's symbols: the weight w > 0, the measured angle θ_z and the two angles φ_0, φ_1
+MULTIPLIER_SYMBOLS = (
+    _sp.Symbol("w", positive=True),
+    *_sp.symbols("theta_z phi_0 phi_1", real=True),
+)
+
+
+def multiplier_reference():
+    """λ_1 = Re(conj(z_1) (M z)_1) for ``M = w [[1, −conj(r)], [−r, 1]]`` (section 4's rule).
+
+    ``f(z) = zᴴ M z = w |z_1 − r z_0|²`` with ``r = e^{iθ_z}``, ``z = (e^{iφ_0}, e^{iφ_1})``;
+    sympy forms ``M z`` and takes the real part.
+    """
+    w, tz, p0, p1 = MULTIPLIER_SYMBOLS
+    r = _sp.exp(_sp.I * tz)
+    z = _sp.Matrix([_sp.exp(_sp.I * p0), _sp.exp(_sp.I * p1)])
+    M = w * _sp.Matrix([[1, -_sp.conjugate(r)], [-r, 1]])
+    value = _sp.conjugate(z[1]) * (M * z)[1]
+    return _sp.simplify(_sp.re(_sp.expand_complex(value)))
+
+
+def _multiplier_slips():
+    w, tz, p0, p1 = MULTIPLIER_SYMBOLS
+    return [
+        (w * (1 + _sp.cos(p1 - p0 - tz)), "the cosine's sign: (M z)_1 = w (z_1 − r z_0), a "
+         "difference."),
+        (w * _sp.sin(p1 - p0 - tz), "that is the imaginary part of conj(z_1)(M z)_1 — the "
+         "gradient along the circle, zero at a stationary point — not the multiplier."),
+        (2 * w * (1 - _sp.cos(p1 - p0 - tz)), "a factor 2 too many: differentiate with respect "
+         "to conj(z), as section 4 does, and the 2's of f and of the constraint cancel."),
+    ]
+
+
+_MULTIPLIER_HINTS = (
+    "section 4: λ_i = Re(conj(z_i) (M x)_i). Here x = z = (z_0, z_1), so write out the second "
+    "row of M z first.",
+    "(M z)_1 = w (z_1 − r z_0), and conj(z_1) z_1 = 1 on the circle.",
+    "conj(z_1) r z_0 = e^{i(θ_z + φ_0 − φ_1)}; its real part is a cosine.",
+)
+
+
+@check("9.4", lambda_1=Formula(MULTIPLIER_SYMBOLS, example="w*cos(phi_0)"))
+def check_multiplier_formula(lambda_1) -> bool:
+    """Exercise 9.4: λ_1 of ``f = w |z_1 − e^{iθ_z} z_0|²`` at ``z = (e^{iφ_0}, e^{iφ_1})``.
+
+    The answer is a formula in :data:`MULTIPLIER_SYMBOLS` (``w``, ``theta_z``, ``phi_0``,
+    ``phi_1``), compared with :func:`multiplier_reference` by symbolic equivalence.
+    """
+    result = formula_comparison(
+        lambda_1,
+        multiplier_reference(),
+        symbols=MULTIPLIER_SYMBOLS,
+        name="your λ_1",
+        slips=_multiplier_slips(),
+    )
+    if result.problem is not None:
+        return verdict("9.4", result.problem, hint=_MULTIPLIER_HINTS)
+    return verdict("9.4", None, correct=f"your λ_1 is section 4's multiplier: {result.detail}.")

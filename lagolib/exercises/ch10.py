@@ -16,8 +16,9 @@ exercise   kind       check
 
 :func:`heading_sweep` computes exercise 10.3's sweep (the chapter's cell and the check share it).
 
-Every check prints one line, ``Exercise 10.k — correct: …``, ``— not yet: …`` (what is wrong, by
-how much, and a hint) or ``— not attempted yet: …``, and returns True or False; it never raises on
+Every check prints one line, ``Exercise 10.k — correct: …``, ``— not yet: …`` (what is wrong and by
+how much, never the answer; ``hint(…)`` tells more, one level per call) or
+``— not attempted yet: …``, and returns True or False; it never raises on
 a wrong answer (see :mod:`lagolib.exercises._feedback`).
 """
 
@@ -238,8 +239,13 @@ def check_icp_step(icp_step):
             return verdict(
                 ex,
                 f"{where}: " + problem,
-                hint="the check calls icp_step(model, points, pose) with a scan_matching.ScanModel, "
-                "an (m, 2) array and a pose (x, y, θ), and expects the new pose back, shape (3,).",
+                hint=(
+                    "the check calls icp_step(model, points, pose) with a "
+                    "scan_matching.ScanModel, an (m, 2) array and a pose (x, y, θ), and expects "
+                    "the new pose back, shape (3,). A point with no partner within "
+                    "MAX_DISTANCE gets dist = inf and idx = len(model.points): mask with "
+                    "np.isfinite(dist) before indexing with idx.",
+                ),
             )
         expected = scan_matching.icp_step(model, points, guess, max_distance=MAX_DISTANCE)[0]
         got = np.array(got, dtype=float)
@@ -249,16 +255,19 @@ def check_icp_step(icp_step):
         if problem is None:
             continue
         hint = (
+            "go through the statement's five steps one at a time on the chapter's pair, and "
+            "check each intermediate result: how many pairs, the residuals r (compare with "
+            "scan_matching.point_to_line_residuals), the scale s, the weights.",
             "pairs: each moved point R(θ) p + t and its nearest usable model point q within "
             f"{MAX_DISTANCE} m; r = n·(R p + t − q), J = [n_x, n_y, n·R'(θ)p]; s = 1.4826 median|r|; "
-            "Cauchy weights; Δx = −(JᵀWJ)⁻¹JᵀWr; new pose = pose + Δx, θ wrapped."
+            "Cauchy weights; Δx = −(JᵀWJ)⁻¹JᵀWr; new pose = pose + Δx, θ wrapped.",
         )
         if got.shape != expected.shape:
             return verdict(ex, f"{where}: {problem}", hint=hint)
         for slip, sentence, slip_hint in _ICP_SLIPS:
             wrong = _icp_variant(model, points, guess, **slip)
             if not np.allclose(wrong, expected, rtol=1e-7, atol=1e-9) and matches(got, wrong, 1e-7):
-                problem, hint = sentence, slip_hint
+                problem, hint = sentence, (slip_hint, hint[1])
                 break
         else:
             if np.allclose(got, guess, rtol=0, atol=1e-12):
@@ -367,12 +376,21 @@ def check_gate_prediction(admitted, graph, j, candidates, rules, poses):
             break
     wrong = [c for c, a, b in zip(LABELS, got, want) if a != b]
     if problem is None:
-        problem = f"candidate(s) {', '.join(wrong)} {'is' if len(wrong) == 1 else 'are'} not right."
+        verb = "is" if len(wrong) == 1 else "are"
+        problem = f"{len(wrong)} of your {len(LABELS)} answers {verb} not right."
+    else:
+        verb = "is" if len(wrong) == 1 else "are"
+        problem += f" ({len(wrong)} of your {len(LABELS)} answers {verb} not right.)"
     return verdict(
         ex,
-        f"{problem} The gate: {facts} (threshold {threshold:.2f}).",
-        hint="d² = max(d − overlap, 0)² / σ² from the printed d and σ; admitted when d² is at "
-        "most χ²₁'s quantile at the rules' confidence.",
+        problem,
+        hint=(
+            "the gate asks how many standard deviations the predicted distance is beyond the "
+            "overlap, along the line of sight, and compares the square with a χ² quantile.",
+            "d² = max(d − overlap, 0)² / σ² from the printed d and σ; admitted when d² is at "
+            f"most χ²₁'s quantile at the rules' confidence ({threshold:.2f}).",
+            f"the check's gate: {facts} (threshold {threshold:.2f}).",
+        ),
     )
 
 
@@ -435,7 +453,7 @@ def heading_sweep(sigmas=SWEEP_SIGMAS):
     return heading_sweep(sigmas)
 
 
-@check("10.3", smallest_sigma=Real(), closures_when_broken=Int())
+@check("10.3", smallest_sigma=Real(), closures_when_broken=Int(count_of="loop closures"))
 def check_heading_sweep(smallest_sigma, closures_when_broken):
     """Check exercise 10.3: where the biased odometry prior stops breaking the map.
 
@@ -478,7 +496,12 @@ def check_heading_sweep(smallest_sigma, closures_when_broken):
                 f"smallest_sigma is {got:.6g}: that is a σ in radians; the sweep lists degrees "
                 "(ch10.SWEEP_SIGMAS)."
             )
-        elif np.any(np.isclose(sigmas, got)):
+        elif not np.any(np.isclose(sigmas, got)):
+            wrong = (
+                f"smallest_sigma = {got:g} is not one of the swept σ "
+                f"({', '.join(f'{s:g}' for s in sigmas)} degrees)."
+            )
+        else:
             k = int(np.argmin(np.abs(sigmas - got)))
             state = "holds" if ok[k] else "breaks"
             wrong = (
@@ -489,8 +512,11 @@ def check_heading_sweep(smallest_sigma, closures_when_broken):
         return verdict(
             ex,
             wrong,
-            hint="read the ATE column from the smallest σ up: the first row at or below "
-            f"{ATE_BOUND:g} m.",
+            hint=(
+                "read the ATE column from the smallest σ up: the first row at or below "
+                f"{ATE_BOUND:g} m.",
+                f"the check's sweep: {table}.",
+            ),
         )
     wrong = compare_int(closures_when_broken, want_closures, name="closures_when_broken")
     if wrong is not None:
@@ -502,7 +528,10 @@ def check_heading_sweep(smallest_sigma, closures_when_broken):
         return verdict(
             ex,
             wrong,
-            hint="the 'closures' column of the largest σ whose ATE is above the bound.",
+            hint=(
+                "the 'closures' column of the largest σ whose ATE is above the bound.",
+                f"the check's sweep: {table}.",
+            ),
         )
     return verdict(
         ex,
