@@ -361,9 +361,9 @@ def test_misuse_is_named(tmp_path, capsys):
     assert cli_main(["book", "grade", carol]) == 2  # no -o: argparse's usage error
     assert "-o/--output" in capsys.readouterr().err
     assert cli_main(["book", "grade", carol, "-o", out, "--cell-timeout", "-1"]) == 2
-    assert "cell_timeout=-1.0; give a positive number" in capsys.readouterr().err
+    assert "-1.0; give a positive number of seconds" in capsys.readouterr().err
     assert cli_main(["book", "grade", carol, "-o", out, "--jobs", "0"]) == 2
-    assert "jobs=0; give a whole number" in capsys.readouterr().err
+    assert "0; give a whole number of notebooks" in capsys.readouterr().err
     bad = tmp_path / "a.toml"
     bad.write_text('title = "x"\n[points]\n"4.1" = \n', encoding="utf-8")
     assert cli_main(["book", "grade", carol, "-o", out, "--assignment", str(bad)]) == 1

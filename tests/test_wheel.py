@@ -126,3 +126,14 @@ def test_the_written_preface_runs_in_the_installed_lagolib(installed):
         work / "runbook",
         env,
     )
+
+
+def test_the_build_hook_skips_what_lagolib_book_skips():
+    import ast
+
+    tree = ast.parse((ROOT / "hatch_build.py").read_text(encoding="utf-8"))
+    (value,) = [
+        n.value for n in tree.body
+        if isinstance(n, ast.Assign) and n.targets[0].id == "NOT_THE_BOOK"
+    ]
+    assert ast.literal_eval(value) == lbook.NOT_THE_BOOK
