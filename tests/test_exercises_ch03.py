@@ -421,11 +421,12 @@ def test_chapter_3_exercises_follow_the_conventions():
     def src(c):
         return "".join(c["source"])
 
-    heads = {"implement": "(implement).**", "predict": "(predict, then check).**"}
+    heads = {"implement": "(implement", "predict": "(predict, then check"}
     for e in found:
         ex, start = e["id"], e["cell"]
+        stars = {1: "★☆☆", 2: "★★☆", 3: "★★★"}[cells[start]["metadata"]["lagolib"]["difficulty"]]
         assert src(cells[start]).startswith(
-            f"**Exercise {ex} " + heads.get(e["kind"], "(explore).**")
+            f"**Exercise {ex} " + heads.get(e["kind"], "(explore") + f", {stars}).**"
         )
         rest = cells[start + 1 :]
         k = next(i for i, c in enumerate(rest) if "solution" in c["metadata"].get("tags", []))

@@ -29,7 +29,11 @@ def _table():
 def _check(stored, fresh):
     assert int(stored["regularized"]) == fresh["regularized"]
     assert float(stored["min_margin"]) == pytest.approx(fresh["min_margin"], abs=2e-4)
-    assert float(stored["lago_chi2"]) == pytest.approx(fresh["lago_chi2"], rel=1e-6, abs=1e-9)
+    # LAGO's χ² where a tree's rounding went wrong is large (INTEL: 1.7e6) and inherits the
+    # conditioning of the solves: with numpy 2.4 / scipy 1.17 three runs on one machine gave
+    # 1714815.7, 1714825.3 and 1714833.7 (stored 1714831.1) — not bit-reproducible, a known
+    # open defect (threaded reductions?), so the row is compared to 1e-4 relative
+    assert float(stored["lago_chi2"]) == pytest.approx(fresh["lago_chi2"], rel=1e-4, abs=1e-9)
     assert float(stored["gn_chi2"]) == pytest.approx(fresh["gn_chi2"], rel=1e-6, abs=1e-9)
 
 

@@ -110,10 +110,13 @@ def test_every_solve_reports_its_check(backend):
     assert chk.backward_error <= linalg.BACKWARD_ERROR_TOL
     r = b - H @ x
     omega = np.max(np.abs(r) / (abs(H) @ np.abs(x) + np.abs(b)))
-    # the same quantities (up to the rounding of the residual itself)
-    assert chk.backward_error == pytest.approx(omega, rel=0.5, abs=1e-16)
+    # the same quantities, up to the rounding of the residual itself: at a backward error of a
+    # few ulps the order of the sparse product's sums decides (scipy 1.17 gave 1.7e-16 where
+    # the check had 3.4e-16), so agreement is asked to within 8 ulps
+    ulps = 8 * np.finfo(float).eps
+    assert chk.backward_error == pytest.approx(omega, rel=0.5, abs=ulps)
     assert chk.relative_residual == pytest.approx(
-        np.linalg.norm(r) / np.linalg.norm(b), rel=0.5, abs=1e-16
+        np.linalg.norm(r) / np.linalg.norm(b), rel=0.5, abs=ulps
     )
     assert 0 <= chk.refinement_steps <= linalg.MAX_REFINEMENT_STEPS
 
