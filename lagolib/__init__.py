@@ -5,7 +5,8 @@ Layers (each imports only from the ones before it)::
     errors -> files (atomic writes) -> se2 -> checks -> graph
     -> io, simulate, metrics, occupancy, scans, scan_matching -> laser_world -> datasets
     -> topology -> linalg -> estimation -> gauss_newton, lago, sgd -> closed_form -> certify
-    -> plotting -> uncertainty -> frontend -> book -> cli;   symbolic (sympy only)
+    -> robust -> plotting -> uncertainty -> frontend -> book -> cli;   symbolic (sympy only);
+    kernels and consistency sit in the layer of io
 
 Public API
 ----------
@@ -27,7 +28,15 @@ linalg
     Sparse Cholesky with pluggable backends, preconditioned conjugate gradients.
 gauss_newton, optimize, Prior
     The lecture notes' least squares: Jacobians, ``H`` and ``b`` (loop and vectorized),
-    Gauss–Newton and Levenberg–Marquardt, gauge by prior or fixed poses.
+    Gauss–Newton and Levenberg–Marquardt, gauge by prior or fixed poses; ``robust=`` a kernel
+    (IRLS, a weight per edge).
+kernels
+    Robust kernels (M-estimators): Huber, Cauchy, Geman–McClure, truncated least squares,
+    DCS — each with ρ, ψ and the IRLS weight; GNC's surrogate weights.
+robust
+    When loop closures lie: graduated non-convexity (``gnc``), every robust method behind
+    ``robust.solve``, precision/recall ``scores``, ``certify_inliers`` (and what it does not
+    cover).
 estimation
     The BLUE in information form, first-order covariance propagation.
 lago_solve, LagoResult, lago
@@ -82,12 +91,14 @@ from . import (
     estimation,
     frontend,
     gauss_newton,
+    kernels,
     lago,
     laser_world,
     linalg,
     metrics,
     occupancy,
     plotting,
+    robust,
     scan_matching,
     scans,
     se2,
@@ -152,6 +163,8 @@ __all__ = [
     "plotting",
     "linalg",
     "gauss_newton",
+    "kernels",
+    "robust",
     "topology",
     "estimation",
     "lago",

@@ -69,7 +69,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import book, certify, datasets, frontend, metrics, scans, se2, topology
+from . import book, certify, datasets, frontend, metrics, robust, scans, se2, topology
 from .errors import (
     DatasetError,
     GraphError,
@@ -513,6 +513,11 @@ _WORSE_RTOL, _WORSE_ATOL = 1e-9, 1e-12
 
 def _check_solve_options(args):
     m = args.method
+    if args.robust is not None and m == "sgd":
+        raise _UsageError(
+            "solve: --robust starts from the file's poses (--method gn/lm) or LAGO's (--method "
+            "lago/lago+gn); --method sgd has no robust variant"
+        )
     if args.tree is not None and m not in ("lago", "lago+gn", "sgd"):
         raise _UsageError(
             f"solve: --tree is used by --method lago, lago+gn and sgd, not by --method {m}"
@@ -527,6 +532,25 @@ def _check_solve_options(args):
             "solve: --iterations does not apply to --method lago (a closed form, no iterations); "
             "use --method lago+gn to refine it"
         )
+
+
+#: What ``solve --robust`` starts from, by ``--method``.
+_ROBUST_START = {"lago": "LAGO", "lago+gn": "LAGO", "gn": "the file's poses", "lm": "the file's poses"}
+
+
+def _run_robust(graph, args, sink, t0):
+    """``solve --robust M``: :func:`lagolib.robust.solve` from LAGO's poses (``--method lago``,
+    ``lago+gn``) or the file's (``gn``, ``lm``); returns poses, iterations, note, result."""
+    start = _run_lago(graph, args, sink, t0) if args.method in ("lago", "lago+gn") else None
+    res = robust.solve(graph, start, method=args.robust, error=args.error,
+                       backend=args.backend or "auto")
+    closures = int(np.sum(graph.loop_closure))
+    note = (f"; {res.outliers.size} of {closures} loop closures judged outliers "
+            f"(chi2 of the inliers {res.chi2_inliers:.10g})")
+    if sink is not None:
+        sink.write(f"[{args.robust}] {res.reason}; {time.perf_counter() - t0:.3f} s\n")
+        sink.flush()
+    return res.poses, res.gauss_newton_iterations, note, res
 
 
 def _run_lago(graph, args, sink, t0):
@@ -572,6 +596,8 @@ def _run_sgd(graph, args, sink, t0, chi_start):
 
 
 def _cmd_solve(args):
+    if args.method is None:
+        args.method = "gn" if args.robust is not None else "lago+gn"
     _check_solve_options(args)
     output = _output_path(args.output, _GRAPH_SUFFIXES, "-o", "solve")
     image = _output_path(args.plot, _image_kinds(), "--plot", "solve") if args.plot else None
@@ -586,7 +612,10 @@ def _cmd_solve(args):
         sink.write(f"[{args.method}] start: chi2 {before:.10g} at {start}\n")
         sink.flush()
     note = ""
-    if args.method == "lago":
+    judged = None
+    if args.robust is not None:
+        poses, iterations, note, judged = _run_robust(graph, args, sink, t0)
+    elif args.method == "lago":
         poses, iterations = _run_lago(graph, args, sink, t0), 0
     elif args.method in ("gn", "lm"):
         poses, iterations, note = _run_optimize(graph, None, args.method, args, sink, t0)
@@ -605,7 +634,7 @@ def _cmd_solve(args):
         )
     solved = graph.with_poses(poses)
     after = chi2(solved, error=args.error)
-    if after > before * (1.0 + _WORSE_RTOL) + _WORSE_ATOL:
+    if judged is None and after > before * (1.0 + _WORSE_RTOL) + _WORSE_ATOL:
         start = "the file's poses" if has_vertices else "the odometry guess"
         warnings.warn(
             f"--method {args.method} ended at chi2 {after:.10g}, above the {before:.10g} of "
@@ -614,7 +643,10 @@ def _cmd_solve(args):
             stacklevel=1,
         )
     # the certificate is computed before anything is written: a failure leaves no OUT behind
-    checked = _certify_poses(graph, poses, sink, t0) if args.certify else None
+    if args.certify and judged is not None:
+        checked = robust.certify_inliers(judged)
+    else:
+        checked = _certify_poses(graph, poses, sink, t0) if args.certify else None
     if image is not None:  # drawn first: a failing --plot leaves no OUT behind either
         title = f"{Path(path).name}: {args.method}, chi2 {after:.6g}"
         try:
@@ -625,17 +657,53 @@ def _cmd_solve(args):
             ) from exc
     _write_solved(solved, output)
     wrote = f"wrote {output}" + (f" and {image}" if image else "")
+    name = args.method if judged is None else f"{args.robust} from {_ROBUST_START[args.method]}"
     print(
-        f"{args.method}: chi2 {before:.10g} -> {after:.10g} ({args.error}), {iterations} "
+        f"{name}: chi2 {before:.10g} -> {after:.10g} ({args.error}), {iterations} "
         f"iterations, {seconds:.3f} s{note}; {wrote}"
     )
     if checked is None:
         return 0
+    if judged is not None:
+        print(checked.statement)
+        return 0 if checked.certified else NOT_CERTIFIED
     ref, cert = checked
     lines = _certificate_lines(cert, cert)
     lines[0] += f" (the chordal minimum next to the solved poses: {ref.iterations} Newton steps)"
     print("\n".join(lines))
     return 0 if cert.certified else NOT_CERTIFIED
+
+
+def _cmd_outliers(args):
+    path, graph, _ = _load(args.file, args.ignore_unknown)
+    t0 = time.perf_counter()
+    res = robust.solve(graph, method=args.method, error=args.error)
+    seconds = time.perf_counter() - t0
+    terms = chi2(graph, res.poses, per_edge=True, error=args.error)
+    bad = res.outliers
+    closures = int(np.sum(graph.loop_closure))
+    rows = [
+        {"edge": int(k), "from": int(graph.ids[graph.edges[k, 0]]),
+         "to": int(graph.ids[graph.edges[k, 1]]), "chi2": float(terms[k])}
+        for k in bad
+    ]
+    if args.json:
+        print(json.dumps({
+            "file": str(path), "method": args.method, "edges": graph.m,
+            "loop_closures": closures, "outliers": rows, "chi2_inliers": res.chi2_inliers,
+            "converged": bool(res.converged), "reason": res.reason, "seconds": seconds,
+        }, indent=1))
+        return 0
+    print(
+        f"{Path(path).name}: {args.method} judged {bad.size} of {closures} loop closures wrong "
+        f"({graph.m} edges; chi2 of the inliers {res.chi2_inliers:.10g}; {seconds:.3f} s; "
+        f"{res.reason})"
+    )
+    if rows:
+        print(f"{'edge':>8s} {'from':>8s} {'to':>8s} {'chi2':>14s}")
+        for r in rows:
+            print(f"{r['edge']:8d} {r['from']:8d} {r['to']:8d} {r['chi2']:14.6g}")
+    return 0
 
 
 # ----------------------------------------------------------------------------- certify
@@ -1590,7 +1658,14 @@ def _parser():
         ),
     )
     p.add_argument("file", metavar="FILE", help=file_help)
-    p.add_argument("--method", "-m", choices=METHODS, default="lago+gn", help="the solver")
+    p.add_argument(
+        "--method",
+        "-m",
+        choices=METHODS,
+        default=None,
+        help="the solver (default lago+gn; with --robust, the start: lago or lago+gn start it "
+        "from LAGO's poses, by default it starts from the file's)",
+    )
     p.add_argument(
         "--tree",
         choices=topology.TREES,
@@ -1627,12 +1702,45 @@ def _parser():
     p.add_argument("--dpi", type=_dpi, default=_DPI, help="resolution of --plot (10 to 2000)")
     p.add_argument("--progress", action="store_true", help="per-iteration lines on stderr")
     p.add_argument(
+        "--robust",
+        choices=robust.METHODS,
+        default=None,
+        metavar="R",
+        help="robust back end against wrong loop closures: " + ", ".join(robust.METHODS)
+        + " (lagolib.robust.solve), from LAGO's poses (--method lago, lago+gn) or the file's "
+        "(gn, lm); OUT keeps every edge, the summary counts the outliers",
+    )
+    p.add_argument(
         "--certify",
         action="store_true",
         help="also certify: polish the chordal cost from the solved poses and test the "
-        f"certificate; exit status {NOT_CERTIFIED} when not certified (OUT is the same)",
+        f"certificate; exit status {NOT_CERTIFIED} when not certified (OUT is the same); with "
+        "--robust, the certified pipeline on the inliers only (the choice of inliers is not "
+        "certified)",
     )
     p.set_defaults(func=_cmd_solve)
+
+    p = sub.add_parser(
+        "outliers",
+        parents=[debug, reading],
+        formatter_class=_Formatter,
+        help="which loop closures are wrong: a robust back end's classification",
+        description=(
+            "Classify the loop closures of a pose graph as inliers or outliers with a robust\n"
+            "back end (lagolib.robust.solve; default gnc-tls: graduated non-convexity with\n"
+            "truncated least squares, no initial guess needed) and list the outliers: edge\n"
+            "index, vertex ids and chi2 at the robust estimate.  --json prints the numbers.\n\n"
+            "examples:\n"
+            "  lagolib outliers intel\n"
+            "  lagolib outliers my_frontend.g2o --method pcm+gnc-tls --json"
+        ),
+    )
+    p.add_argument("file", metavar="FILE", help=file_help)
+    p.add_argument("--method", "-m", choices=robust.METHODS, default="gnc-tls", metavar="R",
+                   help="the robust back end: " + ", ".join(robust.METHODS))
+    p.add_argument("--error", choices=ERRORS, default="t2v", help="residual for chi2")
+    p.add_argument("--json", action="store_true", help="print the numbers as JSON")
+    p.set_defaults(func=_cmd_outliers)
 
     p = sub.add_parser(
         "certify",
@@ -2004,7 +2112,8 @@ def _dispatch(argv):
     args = parser.parse_args(argv)
     if args.command is None:
         raise _UsageError(
-            "a command is required (info, solve, certify, plot, frontend, map, datasets, book)"
+            "a command is required (info, solve, outliers, certify, plot, frontend, map, "
+            "datasets, book)"
         )
     return args.func(args)
 
@@ -2030,7 +2139,8 @@ def main(argv=None) -> int:
     except _UsageError as exc:
         if debug:
             traceback.print_exc()
-        known = ("info", "solve", "certify", "plot", "frontend", "map", "datasets", *COMMANDS)
+        known = ("info", "solve", "outliers", "certify", "plot", "frontend", "map", "datasets",
+                 *COMMANDS)
         hint = f"lagolib {command} --help" if command in known else "lagolib --help"
         print(
             f"lagolib: error: {_for_shell(_one_line(exc), command)} (see '{hint}')",

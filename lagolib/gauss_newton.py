@@ -43,6 +43,7 @@ from .errors import (
     GaugeError,
     GraphError,
     NotPositiveDefiniteError,
+    OptionError,
     OptionTypeError,
 )
 from .graph import (
@@ -57,6 +58,8 @@ from .graph import (
     first_bad_information,
     vertex_rows,
 )
+from .kernels import INLIER_THRESHOLD, Kernel
+from .kernels import kernel as as_kernel
 from .linalg import (
     BACKENDS,
     SparseCholesky,
@@ -73,6 +76,9 @@ __all__ = [
     "build_linear_system_loop",
     "reduce_system",
     "LinearSystem",
+    "RobustSystem",
+    "WeightedLeastSquares",
+    "robust_edge_mask",
     "check_gauge",
     "resolve_gauge",
     "optimize",
@@ -518,6 +524,7 @@ class LinearSystem:
         check_graph(graph, "LinearSystem")
         check_choice(error, "error", "LinearSystem", ERRORS)
         self.graph, self.error = graph, error
+        self.scale = None  # a weight per edge on its information (IRLS, GNC), or None (all 1)
         self.priors = _as_priors(prior, "LinearSystem")
         n = graph.n
         fixed_idx = vertex_rows(graph, fixed, "fixed")
@@ -634,8 +641,22 @@ class LinearSystem:
         return sp.csr_matrix((np.ones(brow.size), (brow, bcol)), shape=(k, k))
 
     def _edge_weights(self):
-        """The weight of every edge's residual: its information matrix, shape (m, 3, 3)."""
-        return self.graph.information
+        """The weight of every edge's residual: its information matrix, times :attr:`scale`
+        where set, shape (m, 3, 3)."""
+        if self.scale is None:
+            return self.graph.information
+        return self.graph.information * self.scale[:, None, None]
+
+    def edge_chi2(self, poses):
+        """Every edge's ``e^T Omega e`` at ``poses`` (shape (n, 3)), unscaled; shape (m,)."""
+        edges = self.graph.edges
+        return _edge_chi2(self.graph, poses[edges[:, 0]], poses[edges[:, 1]], self.error)
+
+    def _prior_chi2(self, poses):
+        ep = se2.between(self._prior_mean, poses[self._prior_idx])
+        if self.error == "log":
+            ep = se2.log(ep)
+        return float(np.einsum("ka,kab,kb->", ep, self._prior_info, ep))
 
     def _terms(self, poses):
         g = self.graph
@@ -646,15 +667,11 @@ class LinearSystem:
         return e, J, ep, Jp
 
     def objective(self, poses):
-        """χ² of the edges plus the priors' terms at ``poses`` (shape (n, 3)); no Jacobians."""
-        edges = self.graph.edges
-        chi = float(
-            _edge_chi2(self.graph, poses[edges[:, 0]], poses[edges[:, 1]], self.error).sum()
-        )
-        ep = se2.between(self._prior_mean, poses[self._prior_idx])
-        if self.error == "log":
-            ep = se2.log(ep)
-        return chi + float(np.einsum("ka,kab,kb->", ep, self._prior_info, ep))
+        """χ² of the edges (each times :attr:`scale` where set) plus the priors' terms at
+        ``poses`` (shape (n, 3)); no Jacobians."""
+        terms = self.edge_chi2(poses)
+        chi = float(terms.sum() if self.scale is None else terms @ self.scale)
+        return chi + self._prior_chi2(poses)
 
     def assemble(self, poses):
         """``H``, ``b`` and the objective at ``poses``.
@@ -692,6 +709,8 @@ class LinearSystem:
             if fast:
                 u = edge_errors(p_i[c], p_j[c], g.measurements[c])  # the t2v error
                 Wc = g.information[c]
+                if self.scale is not None:  # IRLS: w_ij Omega_ij
+                    Wc = Wc * self.scale[c, None, None]
                 if self.error == "log":  # e = log(u): Jacobians D [A B]
                     ec, D = se2.log(u), se2.log_jacobian(u)
                     Dt = np.swapaxes(D, 1, 2)
@@ -768,6 +787,96 @@ class LinearSystem:
         return out
 
 
+class RobustSystem(LinearSystem):
+    """``H``, ``b`` and the objective of a robust cost ``Σ 2 ρ(r_ij)``, by IRLS.
+
+    The notes' loop unchanged, with a weight per edge: at every linearization point each
+    robust edge's information is scaled by its kernel weight ``w(r_ij)``,
+    ``r_ij = sqrt(e_ij^T Omega_ij e_ij)`` (:mod:`lagolib.kernels`), so ``b = Σ w_ij J^T Omega e``
+    is half the gradient of ``Σ 2 ρ(r_ij)`` and ``H = Σ w_ij J^T Omega J`` its Gauss–Newton
+    approximation (Zhang 1997, §4; GTSAM's robust noise models do the same).  Edges outside
+    ``robust`` keep ``ρ(r) = r²/2`` (weight 1).  :attr:`scale` holds the weights of the last
+    :meth:`assemble`.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    kernel : lagolib.kernels.Kernel
+    robust : ndarray of bool, shape (m,)
+        The edges the kernel applies to.
+    fixed, prior, error
+        As :class:`LinearSystem`.
+    """
+
+    def __init__(self, graph, kernel, robust, *, fixed=(), prior=None, error="t2v"):
+        super().__init__(graph, fixed=fixed, prior=prior, error=error)
+        self.kernel, self.robust = kernel, robust
+
+    def weights(self, terms):
+        """``w(r_ij)`` on the robust edges, 1 elsewhere, from ``terms = e^T Omega e``, (m,)."""
+        w = np.ones(terms.shape)
+        w[self.robust] = self.kernel.weight(np.sqrt(terms[self.robust]))  # IRLS weight w(r)
+        return w
+
+    def _cost(self, terms):
+        cost = terms.copy()
+        cost[self.robust] = self.kernel.cost(terms[self.robust])  # 2 rho(r) on robust edges
+        return float(cost.sum())
+
+    def objective(self, poses):
+        """``Σ 2 ρ(r_ij)`` over robust edges, ``Σ r_ij²`` over the others, plus the priors."""
+        return self._cost(self.edge_chi2(poses)) + self._prior_chi2(poses)
+
+    def assemble(self, poses):
+        """:meth:`LinearSystem.assemble` with the weights ``w(r_ij)`` at ``poses``; returns
+        ``(H, b, objective)`` with the robust objective."""
+        terms = self.edge_chi2(poses)
+        with np.errstate(invalid="ignore"):
+            self.scale = self.weights(terms)
+        H, b, _ = super().assemble(poses)
+        return H, b, self._cost(terms) + self._prior_chi2(poses)
+
+
+#: ``robust_edges=`` choices: the loop closures (odometry trusted, as Vertigo and most robust
+#: back ends assume) or every edge.
+ROBUST_EDGES = ("closures", "all")
+
+
+def robust_edge_mask(graph, robust_edges, where="optimize"):
+    """The edges a robust kernel applies to, ndarray of bool, shape (m,).
+
+    ``"closures"``: every edge that is not odometric (:attr:`PoseGraph.loop_closure`);
+    ``"all"``; or a boolean mask / a sequence of edge indices.
+    """
+    if isinstance(robust_edges, str):
+        robust_edges = check_choice(robust_edges, "robust_edges", where, ROBUST_EDGES)
+        if robust_edges == "all":
+            return np.ones(graph.m, dtype=bool)
+        return np.array(graph.loop_closure, dtype=bool)
+    a = np.asarray(robust_edges)
+    if a.dtype == bool:
+        if a.shape != (graph.m,):
+            raise OptionError(
+                f"{where}: robust_edges as a mask must have shape ({graph.m},) (one per edge); "
+                f"got {a.shape}"
+            )
+        return a.copy()
+    if a.ndim != 1 or (a.size and not np.issubdtype(a.dtype, np.integer)):
+        raise OptionTypeError(
+            f"{where}: robust_edges must be 'closures', 'all', a boolean mask of shape "
+            f"({graph.m},) or edge indices; got {type(robust_edges).__name__} of dtype {a.dtype}"
+        )
+    bad = a[(a < 0) | (a >= graph.m)]
+    if bad.size:
+        raise OptionError(
+            f"{where}: robust_edges names edge index {int(bad[0])}, but the graph has edges "
+            f"0..{graph.m - 1}"
+        )
+    mask = np.zeros(graph.m, dtype=bool)
+    mask[a.astype(np.int64)] = True
+    return mask
+
+
 # ----------------------------------------------------------------------------- optimize
 @dataclass
 class OptimizeResult:
@@ -801,6 +910,17 @@ class OptimizeResult:
         and checks) and ``"total"``: seconds.
     graph : PoseGraph
         The input graph with ``poses``.
+    cost : float
+        The objective minimized at ``poses``: ``chi2`` without a robust kernel; with one,
+        ``Σ 2 ρ(r_ij)`` over the robust edges plus ``Σ r_ij²`` over the others and the priors.
+    kernel : lagolib.kernels.Kernel or None
+        The robust kernel (``robust=``), or None.
+    weights : ndarray, shape (m,)
+        Each edge's weight on its information at ``poses``: ``w(r_ij)`` on the robust edges,
+        1 elsewhere (all 1 without a kernel).
+    inlier : ndarray of bool, shape (m,)
+        Edges judged right at ``poses``: ``e^T Omega e <= INLIER_THRESHOLD²`` (χ²₃ at 0.999) on
+        the robust edges; every other edge is assumed right.  Without a kernel, all True.
     """
 
     poses: np.ndarray
@@ -817,11 +937,17 @@ class OptimizeResult:
     step_fractions: list = field(default_factory=list)
     linear_iterations: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
+    cost: float = float("nan")
+    kernel: Kernel | None = None
+    weights: np.ndarray | None = None
+    inlier: np.ndarray | None = None
 
     def __repr__(self):
+        robust = "" if self.kernel is None else f", kernel={self.kernel!r}, cost={self.cost:.10g}"
         return (
-            f"OptimizeResult(method={self.method!r}, error={self.error!r}, chi2={self.chi2:.10g}, "
-            f"iterations={self.iterations}, converged={self.converged}, reason={self.reason!r})"
+            f"OptimizeResult(method={self.method!r}, error={self.error!r}, chi2={self.chi2:.10g}"
+            f"{robust}, iterations={self.iterations}, converged={self.converged}, "
+            f"reason={self.reason!r})"
         )
 
 
@@ -1019,6 +1145,8 @@ def optimize(
     max_backtracks=10,
     verbose=False,
     callback=None,
+    robust=None,
+    robust_edges="closures",
 ):
     """Minimize ``sum e_ij^T Omega_ij e_ij`` by Gauss–Newton or Levenberg–Marquardt.
 
@@ -1078,10 +1206,19 @@ def optimize(
     callback : callable, optional
         ``callback(iteration, poses)`` after every accepted step (``poses``: the new iterate, a
         copy) — e.g. to record a metric per iteration.
+    robust : str or lagolib.kernels.Kernel, optional
+        Minimize ``Σ 2 ρ(r_ij)`` instead (:class:`RobustSystem`, IRLS): ``"huber"``,
+        ``"cauchy"``, ``"gm"``, ``"tls"``, ``"dcs"`` with the scale
+        :data:`lagolib.kernels.INLIER_THRESHOLD`, or a Kernel with its own.  A robust cost has
+        local minima a bad start falls into: :func:`lagolib.robust.gnc` does not need a good
+        start.
+    robust_edges : {"closures", "all"} or array_like
+        The edges the kernel applies to (:func:`robust_edge_mask`); default the loop closures.
 
     Returns
     -------
     OptimizeResult
+        With a kernel, ``weights`` and ``inlier`` say what it made of every edge.
 
     Raises
     ------
@@ -1123,7 +1260,12 @@ def optimize(
     callback = check_callback(callback, "callback", where)
     fixed, priors = resolve_gauge(graph, fixed, prior, where=where)
     x = as_graph_poses(graph, initial, "initial", "initial guess")
-    system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
+    if robust is None:
+        system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
+    else:
+        kern = as_kernel(robust, where=f"{where}: robust")
+        mask = robust_edge_mask(graph, robust_edges, where)
+        system = RobustSystem(graph, kern, mask, fixed=fixed, prior=priors, error=error)
     solve = _LinearSolver(linear_solver, backend, system.ordering, system.core_rows)
     if method == "gn":
         control = _GaussNewtonSteps(max_backtracks)
@@ -1136,11 +1278,21 @@ def optimize(
         system, x, control, solve, trace, max_iterations, tol, step_tol, callback
     )
     converged, reason = stop or (False, f"reached max_iterations={max_iterations}")
+    cost, weights, inlier = chi, np.ones(graph.m), np.ones(graph.m, dtype=bool)
+    if robust is not None:
+        terms = system.edge_chi2(x)
+        weights = system.weights(terms)
+        inlier = ~system.robust | (terms <= INLIER_THRESHOLD**2)
+        chi = float(terms.sum()) + system._prior_chi2(x)
     trace.timings["setup"] = t_setup
     trace.timings["total"] = time.perf_counter() - t_start
     return OptimizeResult(
         poses=x,
         chi2=chi,
+        cost=cost,
+        kernel=None if robust is None else system.kernel,
+        weights=weights,
+        inlier=inlier,
         chi2_history=trace.history,
         step_norms=trace.steps,
         iterations=trace.iterations,
@@ -1297,3 +1449,46 @@ def _solve_step(control, H, b, solve, system, trace):
         raise NotPositiveDefiniteError(
             message + ("; try method='lm'" if control.method == "gn" else ""), pivot=exc.pivot
         ) from None
+
+
+class WeightedLeastSquares:
+    """Gauss–Newton on ``Σ w_ij e_ij^T Omega_ij e_ij`` with weights that change between solves.
+
+    Graduated non-convexity's variable update (:func:`lagolib.robust.gnc`): one
+    :class:`LinearSystem`, one elimination ordering and one symbolic factorization serve every
+    set of weights (a weight of 0 removes an edge's term but not its place in the pattern).
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    fixed, prior, error, backend
+        As :func:`optimize` (the gauge: the first vertex fixed unless ``prior`` is given).
+    where : str
+        The caller's name, for messages.
+    """
+
+    def __init__(self, graph, *, fixed=None, prior=None, error="t2v", backend="auto",
+                 where="WeightedLeastSquares"):
+        check_graph(graph, where)
+        error = check_choice(error, "error", where, ERRORS)
+        backend = check_choice(backend, "backend", where, ("auto",) + BACKENDS)
+        fixed, priors = resolve_gauge(graph, fixed, prior, where=where)
+        self.graph = graph
+        self.system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
+        self._solver = _LinearSolver("cholesky", backend, self.system.ordering,
+                                     self.system.core_rows)
+        self.iterations = 0  # Gauss–Newton steps over all solves
+
+    def edge_chi2(self, poses):
+        """Every edge's ``e^T Omega e`` at ``poses`` (unweighted), shape (m,)."""
+        return self.system.edge_chi2(poses)
+
+    def solve(self, poses, weights, *, max_iterations=100, tol=1e-10, step_tol=1e-10):
+        """Minimize the weighted χ² from ``poses`` (shape (n, 3)) with ``weights`` (shape (m,),
+        ``>= 0``); returns ``(poses, weighted objective, stop reason)``."""
+        self.system.scale = np.asarray(weights, dtype=float)
+        trace = _Trace("gn", False)
+        x, chi, stop = _minimize(self.system, poses, _GaussNewtonSteps(10), self._solver, trace,
+                                 max_iterations, tol, step_tol, None)
+        self.iterations += trace.iterations
+        return x, chi, (stop or (False, f"reached max_iterations={max_iterations}"))[1]
