@@ -689,7 +689,8 @@ class LinearSystem:
         b : ndarray, shape (N,)
             ``sum_ij J_ij^T Omega_ij e_ij``.
         chi2 : float
-            ``sum_ij e_ij^T Omega_ij e_ij`` plus the priors' terms.
+            ``sum_ij e_ij^T Omega_ij e_ij`` (each term times :attr:`scale` where set) plus the
+            priors' terms.
         """
         fast = self._closed_form  # lagolib's own edges and Jacobians: the blocks in closed form
         if fast:
@@ -809,8 +810,10 @@ class RobustSystem(LinearSystem):
     """
 
     def __init__(self, graph, kernel, robust, *, fixed=(), prior=None, error="t2v"):
+        check_graph(graph, "RobustSystem")
         super().__init__(graph, fixed=fixed, prior=prior, error=error)
-        self.kernel, self.robust = kernel, robust
+        self.kernel = as_kernel(kernel, where="RobustSystem: kernel")
+        self.robust = robust_edge_mask(graph, robust, "RobustSystem")
 
     def weights(self, terms):
         """``w(r_ij)`` on the robust edges, 1 elsewhere, from ``terms = e^T Omega e``, (m,)."""
@@ -842,12 +845,13 @@ class RobustSystem(LinearSystem):
 ROBUST_EDGES = ("closures", "all")
 
 
-def robust_edge_mask(graph, robust_edges, where="optimize"):
+def robust_edge_mask(graph, robust_edges, where="robust_edge_mask"):
     """The edges a robust kernel applies to, ndarray of bool, shape (m,).
 
     ``"closures"``: every edge that is not odometric (:attr:`PoseGraph.loop_closure`);
     ``"all"``; or a boolean mask / a sequence of edge indices.
     """
+    check_graph(graph, where)
     if isinstance(robust_edges, str):
         robust_edges = check_choice(robust_edges, "robust_edges", where, ROBUST_EDGES)
         if robust_edges == "all":
@@ -887,9 +891,10 @@ class OptimizeResult:
     poses : ndarray, shape (n, 3)
         The best iterate (lowest objective) — never worse than any other iterate.
     chi2 : float
-        Its objective: ``sum e^T Omega e`` over edges, plus the priors' terms.
+        Its χ²: ``sum e^T Omega e`` over all edges, plus the priors' terms — the objective
+        minimized, unless a robust kernel was (then see ``cost``).
     chi2_history : list of float
-        Objective at the start and after every accepted step.
+        The objective minimized (``cost``) at the start and after every accepted step.
     step_norms : list of float
         ``max |dx|`` of every accepted step.
     iterations : int

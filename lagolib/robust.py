@@ -480,6 +480,7 @@ def _mask(value, name, where):
 def inlier_graph(graph, inlier):
     """The graph with only the edges where ``inlier`` (bool, shape (m,)) is True; same poses,
     ids and vertex order."""
+    check_graph(graph, "inlier_graph")
     keep = _mask(inlier, "inlier", "inlier_graph")
     if keep.shape != (graph.m,):
         raise OptionError(f"inlier_graph: inlier must have shape ({graph.m},); got {keep.shape}")

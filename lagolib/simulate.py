@@ -15,6 +15,18 @@ Measurements follow Carlone et al. 2011, §III: ``xi_ij = (p_j ⊖ p_i) + eps_ij
 
 Translation noise is isotropic on every edge, so the information matrix is the same whether the
 error is written in frame ``i`` or in the measurement's frame (TORO and g2o agree).
+
+Wrong loop closures — outliers — are added to any graph by :func:`add_outliers`, which returns an
+:class:`Outliers` (the spoiled graph and a mask of its wrong edges).  It reproduces the four
+policies of the Vertigo benchmark suite (Sünderhauf & Protzel, "Switchable constraints for robust
+pose graph SLAM", IROS 2012; the suite's ``datasets/generateDataset.py``): ``"random"``,
+``"local"``, ``"random-grouped"`` and ``"local-grouped"`` — groups of wrong closures that agree
+with each other, the hard case for robust back ends.
+
+References
+----------
+.. [1] N. Sünderhauf, P. Protzel, "Switchable constraints for robust pose graph SLAM", IEEE/RSJ
+   IROS 2012; Vertigo, https://github.com/OpenSLAM-org/openslam_vertigo (generateDataset.py).
 """
 
 from __future__ import annotations
@@ -28,9 +40,19 @@ import numpy as np
 from . import se2
 from .checks import check_bool, check_choice, check_int, check_real, check_rng, real_array
 from .errors import GraphError, OptionError
-from .graph import PoseGraph
+from .graph import PoseGraph, check_graph, describe_bad_information, first_bad_information
 
-__all__ = ["Simulation", "measure", "loop_world", "manhattan_world", "grid_world"]
+__all__ = [
+    "Simulation",
+    "measure",
+    "loop_world",
+    "manhattan_world",
+    "grid_world",
+    "Outliers",
+    "add_outliers",
+    "OUTLIER_POLICIES",
+    "OUTLIER_SIGMA",
+]
 
 
 @dataclass(frozen=True)
@@ -505,3 +527,234 @@ def grid_world(
         sigma_theta=sigma_theta * scale,
         **noise,
     )
+
+
+# ---------------------------------------------------------------------------- outliers
+
+OUTLIER_POLICIES = ("random", "local", "random-grouped", "local-grouped")
+"""The policies of :func:`add_outliers`, after the Vertigo suite (Sünderhauf & Protzel 2012)."""
+
+#: Standard deviations ``(x, y, theta)`` of a wrong closure's measurement, Vertigo's 2D values:
+#: 0.3 m, 0.3 m and 10 degrees around the identity (a "this is the same place" claim).
+OUTLIER_SIGMA = (0.3, 0.3, math.radians(10.0))
+
+
+@dataclass(frozen=True)
+class Outliers:
+    """A pose graph spoiled with wrong loop closures by :func:`add_outliers`.
+
+    Attributes
+    ----------
+    graph : PoseGraph
+        The original edges followed by the ``count`` wrong ones; the poses and ids are the
+        original graph's.
+    outlier : ndarray of bool, shape (m,)
+        ``True`` for the appended wrong edges (the last ``count``), ``m = graph.m``.
+    groups : ndarray of int64, shape (m,)
+        Group of each wrong edge, ``0 .. n_groups - 1`` in the order they were appended; ``-1``
+        for the original edges.  Without grouping every wrong edge is its own group.
+    policy : str
+        One of :data:`OUTLIER_POLICIES`.
+    """
+
+    graph: PoseGraph
+    outlier: np.ndarray
+    groups: np.ndarray
+    policy: str
+
+    @property
+    def count(self):
+        """int: the number of wrong edges."""
+        return int(np.count_nonzero(self.outlier))
+
+
+def _typical_information(graph, where):
+    """The information matrix of the graph's loop closure with the median trace (odometry's if
+    the graph has no loop closure); shape (3, 3)."""
+    pick = graph.loop_closure if np.any(graph.loop_closure) else graph.odometric
+    info = graph.information[pick]
+    if len(info) == 0:
+        raise OptionError(
+            f"{where}: the graph has no edges to take a typical information matrix from; pass "
+            "information= (one 3x3 matrix)"
+        )
+    trace = np.trace(info, axis1=1, axis2=2)
+    return info[np.argsort(trace, kind="stable")[(len(trace) - 1) // 2]].copy()
+
+
+def _outlier_information(information, graph, where):
+    """``information`` checked to be one usable 3x3 matrix, or the graph's typical one."""
+    if information is None:
+        return _typical_information(graph, where)
+    info = real_array(information, "information", where)
+    if info.shape != (3, 3):
+        raise OptionError(
+            f"{where}: information must be one 3x3 matrix (used for every wrong edge); got "
+            f"shape {info.shape}"
+        )
+    if first_bad_information(info[None]) is not None:
+        raise OptionError(f"{where}: information: {describe_bad_information(info)}")
+    return 0.5 * (info + info.T)
+
+
+def _outlier_starts(n_groups, last, local_radius, rng):
+    """Rank pairs ``(a, b)``, ``a + 2 <= b <= last``, of ``n_groups`` groups; shape (g, 2).
+
+    Without ``local_radius``: ``a``, ``b`` uniform over the unordered pairs (two independent
+    uniform draws in ``[0, last]``, redrawn when less than two apart, then sorted).  With it:
+    ``a`` uniform in ``[0, last]`` and ``b = a + d``, ``d`` uniform in ``[2, local_radius]``,
+    redrawn when ``b > last``.  Redrawing happens in batches, so the result depends only on the
+    generator's state.
+    """
+    found = []
+    need = n_groups
+    while need > 0:
+        size = 2 * need + 16
+        if local_radius is None:
+            u = rng.integers(0, last + 1, size=(size, 2))
+            u = u[np.abs(u[:, 0] - u[:, 1]) >= 2]
+            u.sort(axis=1)
+        else:
+            a = rng.integers(0, last + 1, size=size)
+            b = a + rng.integers(2, local_radius + 1, size=size)
+            keep = b <= last
+            u = np.column_stack([a[keep], b[keep]])
+        found.append(u[:need])
+        need -= len(found[-1])
+    return np.vstack(found) if found else np.zeros((0, 2), dtype=np.int64)
+
+
+def add_outliers(
+    graph,
+    count,
+    *,
+    policy="random",
+    group_size=10,
+    rng=0,
+    local_radius=20,
+    information=None,
+):
+    """Append ``count`` wrong loop closures to ``graph``, as the Vertigo benchmark suite does.
+
+    Sünderhauf & Protzel (IROS 2012) spoil pose graphs with false-positive loop closures of four
+    kinds; their suite's ``generateDataset.py`` draws them as follows, and so does this function:
+
+    * ``"random"``: both ends uniform over the poses;
+    * ``"local"``: the second end a few poses after the first, ``2 <= j - i <= local_radius``
+      (Vertigo: 20) — a wrong closure near the true trajectory, hard to tell from odometry drift;
+    * ``"random-grouped"`` / ``"local-grouped"``: groups of ``group_size`` wrong closures
+      ``(i + t, j + t)``, ``t = 0 .. group_size - 1``, all with the *same* wrong measurement, so
+      that the members of a group agree with each other (and a consistency test passes them) —
+      the hard case.
+
+    Each group's measurement ``z = (x, y, theta)`` is drawn once, Gaussian around the identity with
+    the standard deviations :data:`OUTLIER_SIGMA` = (0.3 m, 0.3 m, 10°), Vertigo's 2D values: the
+    wrong closure claims "pose ``j`` is where pose ``i`` was".  Ends are vertex ranks in id order
+    (the odometric order), ``i < j``, the edge measures ``j`` in the frame of ``i``, never between
+    consecutive ids and never a self-loop.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    count : int
+        Number of wrong edges to append, ``>= 0`` (edges, not groups: Vertigo's ``--outliers``
+        counts groups when ``--groupsize > 1``).  With grouping, ``ceil(count / group_size)``
+        groups; the last one is shorter when ``group_size`` does not divide ``count``.
+    policy : {"random", "local", "random-grouped", "local-grouped"}
+    group_size : int
+        Wrong edges per group for the grouped policies, ``>= 1`` (ignored by the others).
+    rng : int or numpy.random.Generator
+        Seed or generator; the same seed gives the same wrong edges.
+    local_radius : int
+        Largest ``j - i`` of the local policies, ``>= 2``.
+    information : array_like, shape (3, 3), optional
+        Information matrix of every wrong edge.  Default: the graph's typical loop closure's —
+        the loop closure with the median trace (the lower median), or the odometry's if the graph
+        has no loop closure — so that the wrong edges claim the confidence of the right ones.
+
+    Returns
+    -------
+    Outliers
+        ``graph`` with the original edges first, then the wrong ones; ``outlier`` marks the wrong
+        ones and ``groups`` numbers their groups.  ``count = 0`` returns ``graph`` itself.
+
+    Raises
+    ------
+    OptionError
+        ``count < 0``, ``group_size < 1``, ``local_radius < 2``, an unknown ``policy``, an
+        information matrix that is not one usable 3x3 matrix, or a graph with too few poses:
+        ``group_size + 2`` are needed for the grouped policies, 3 for the others.
+    OptionTypeError
+        ``graph`` is not a :class:`~lagolib.graph.PoseGraph`, or an option has the wrong type.
+
+    Notes
+    -----
+    Differences from Vertigo's script, all in how the ends are drawn: Vertigo draws ``j`` in
+    ``[i, i + 20]`` for "local" and moves ``j = i + 1`` to ``i + 2`` (so a gap of 2 is twice as
+    likely); here the gap is uniform in ``[2, local_radius]`` and pairs closer than 2 are redrawn,
+    and in both cases the ends range over every pose the group fits in.  A wrong closure between
+    two poses that really are at nearly the same place (a revisit) is close to right; with random
+    ends on a large map this is rare, but it is not excluded.
+
+    Examples
+    --------
+    >>> from lagolib.simulate import add_outliers, manhattan_world
+    >>> sim = manhattan_world(n_poses=100, rng=0)
+    >>> spoiled = add_outliers(sim.graph, 12, policy="local-grouped", group_size=5, rng=1)
+    >>> spoiled.graph.m - sim.graph.m, spoiled.count, bool(spoiled.outlier[: sim.graph.m].any())
+    (12, 12, False)
+    >>> spoiled.groups[spoiled.outlier].tolist()
+    [0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 2, 2]
+    >>> wrong = spoiled.graph.edges[spoiled.outlier]
+    >>> bool(np.all(np.diff(wrong[:5], axis=0) == 1))  # a group's ends advance together
+    True
+    >>> bool(np.all(spoiled.graph.measurements[spoiled.outlier][:5] == spoiled.graph.measurements[
+    ...     spoiled.outlier][0]))  # with one wrong measurement
+    True
+    """
+    where = "add_outliers"
+    graph = check_graph(graph, where)
+    count = check_int(count, "count", where, minimum=0)
+    policy = check_choice(policy, "policy", where, OUTLIER_POLICIES)
+    group_size = check_int(group_size, "group_size", where, minimum=1)
+    rng = check_rng(rng, where)
+    local_radius = check_int(local_radius, "local_radius", where, minimum=2)
+    information = _outlier_information(information, graph, where)
+    grouped = policy.endswith("-grouped")
+    length = group_size if grouped else 1
+    n = graph.n
+    if n < length + 2:
+        need = f"group_size + 2 = {length + 2}" if grouped else "3"
+        fix = "; use a smaller group_size" if grouped else ""
+        raise OptionError(
+            f"{where}: policy {policy!r} needs a graph of at least {need} poses for a wrong edge "
+            f"between non-consecutive poses; the graph has {n}{fix}"
+        )
+    m = graph.m
+    if count == 0:
+        return Outliers(graph, _read_only(np.zeros(m, bool)), _read_only(np.full(m, -1)), policy)
+    n_groups = -(-count // length)
+    radius = local_radius if policy.startswith("local") else None
+    starts = _outlier_starts(n_groups, n - length, radius, rng)
+    z = rng.standard_normal((n_groups, 3)) * np.asarray(OUTLIER_SIGMA)
+    z[:, 2] = se2.wrap_angle(z[:, 2])
+    group = np.repeat(np.arange(n_groups), length)[:count]
+    step = np.tile(np.arange(length), n_groups)[:count]
+    ranks = starts[group] + step[:, None]
+    row_of_rank = np.argsort(graph.order, kind="stable")
+    spoiled = PoseGraph(
+        graph.poses,
+        np.vstack([graph.edges, row_of_rank[ranks]]),
+        np.vstack([graph.measurements, z[group]]),
+        np.concatenate([graph.information, np.broadcast_to(information, (count, 3, 3))]),
+        ids=graph.ids,
+    )
+    outlier = np.concatenate([np.zeros(m, bool), np.ones(count, bool)])
+    groups = np.concatenate([np.full(m, -1), group]).astype(np.int64)
+    return Outliers(spoiled, _read_only(outlier), _read_only(groups), policy)
+
+
+def _read_only(a):
+    """``a`` with its write flag cleared (the arrays of a frozen result)."""
+    a.setflags(write=False)
+    return a

@@ -63,7 +63,7 @@ def loop():
 _NOT_API = {"cli", "book", "symbolic", "exercises"}
 #: messages that name an inner function instead of the one called — in files this change did not
 #: own (metrics.py): sesync_weights reports "sesync_parameters: graph must be ..."
-_NAMES_ANOTHER = {("metrics", "sesync_weights")}
+_NAMES_ANOTHER = {("metrics", "sesync_weights"), ("robust", "solve")}  # "robust.solve: ..."
 
 
 def _graph_functions():
@@ -93,6 +93,11 @@ _FUNCTIONS = _graph_functions()
 def _valid_arguments(fn, g, tmp_path):
     """Valid values for the required arguments other than ``graph``, by name."""
     known = {
+        "count": 1,
+        "inlier": np.ones(g.m, dtype=bool),
+        "kernel": "huber",
+        "robust_edges": "closures",
+        "robust": "closures",
         "vertices": [0],
         "vertex": 0,
         "i": 0,
