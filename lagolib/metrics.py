@@ -52,7 +52,7 @@ import numpy as np
 from . import se2
 from .checks import check_bool
 from .errors import GraphError, GraphTypeError, OptionError, OptionTypeError
-from .graph import PoseGraph, _numeric, as_graph_poses, check_poses, edge_errors
+from .graph import PoseGraph, _numeric, as_graph_poses, check_poses, chi2, edge_errors
 
 __all__ = [
     "ConstraintSatisfaction",
@@ -65,6 +65,7 @@ __all__ = [
     "align",
     "absolute_trajectory_error",
     "relative_pose_error",
+    "variance_factor",
 ]
 
 
@@ -690,3 +691,48 @@ def relative_pose_error(poses, truth, *, pairs=None):
     rel_q = se2.between(q[ij[:, 0]], q[ij[:, 1]])  # Q_i^-1 Q_j
     e = se2.between(rel_q, rel_p)  # Sturm et al. 2012, RPE: (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)
     return _summary(e[:, :2], e[:, 2], ij, None, scale)
+
+
+def variance_factor(graph, poses=None, *, error="t2v"):
+    """The a-posteriori variance factor ``σ̂₀² = χ² / r``: how well the information matrices
+    describe the residuals at a least-squares optimum.
+
+    ``r = 3 m - 3 (n - 1)`` is the redundancy (equations minus unknowns, the gauge removed).
+    When every information matrix is right, ``χ²`` at the optimum is χ²-distributed with ``r``
+    degrees of freedom and ``σ̂₀² ≈ 1``; ``σ̂₀² = 0.02`` says the matrices claim 7 times too
+    large a standard deviation.  ``graph.with_information(graph.information / σ̂₀²)`` is then
+    calibrated — what a threshold in σ units (a robust kernel's scale, a χ² gate) assumes.
+
+    Parameters
+    ----------
+    graph : PoseGraph
+    poses : array_like, shape (n, 3), optional
+        A least-squares optimum of ``graph`` (default ``graph.poses``).
+    error : {"t2v", "log"}
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    GraphError
+        When the graph has no redundancy (``3 m <= 3 (n - 1)``: a tree or less).
+
+    Examples
+    --------
+    >>> import lagolib
+    >>> sim = lagolib.simulate.manhattan_world(n_poses=200, rng=0)
+    >>> round(variance_factor(sim.graph, lagolib.optimize(sim.graph).poses), 2)
+    1.08
+    """
+    where = "variance_factor"
+    _check_graph(graph, where, need_edges=True)
+    redundancy = 3 * graph.m - 3 * (graph.n - 1)
+    if redundancy <= 0:
+        raise GraphError(
+            f"{where}: the graph has no redundancy ({graph.m} edges for {graph.n} poses: 3m - "
+            "3(n-1) <= 0), so its residuals say nothing about its information matrices"
+        )
+    return float(chi2(graph, poses, error=error)) / redundancy  # sigma0^2 = chi2 / r
+

@@ -45,7 +45,7 @@ import numpy as np
 
 from .certify import solve as certified_solve
 from .checks import check_bool, check_choice, check_int, check_real
-from .errors import OptionError, OptionTypeError
+from .errors import GaugeError, GraphError, OptionError, OptionTypeError
 from .gauss_newton import WeightedLeastSquares, optimize, robust_edge_mask
 from .graph import PoseGraph, as_graph_poses, check_graph
 from .kernels import INLIER_THRESHOLD, KERNELS, gnc_initial_mu, gnc_weights
@@ -134,6 +134,62 @@ class RobustResult:
 
 def _check_c(c, where):
     return check_real(c, "c", where, minimum=0.0, strict=True)
+
+
+#: :class:`_ActiveSet` rebuilds its system without the zero-weight edges once this fraction of
+#: the edges has changed since the last build (a weight of 0 costs a factorization its fill).
+REBUILD_FRACTION = 0.01
+
+
+class _ActiveSet:
+    """Weighted least squares over the edges whose weight is not zero.
+
+    An edge with weight 0 adds nothing to ``H`` but keeps its place in the sparsity pattern —
+    and a wrong loop closure between distant poses costs the factorization a great deal of
+    fill (M3500 with 1000 random wrong closures: about 100 times the time per factorization).
+    This solver rebuilds :class:`~lagolib.gauss_newton.WeightedLeastSquares` on the graph
+    without them once enough weights have become zero, and at once when an excluded edge's
+    weight becomes positive again, so the answer is the same as with every edge in place.
+    Residuals are always evaluated on the whole graph.
+    """
+
+    def __init__(self, graph, opts, where):
+        self.graph, self.opts, self.where = graph, opts, where
+        self.full = WeightedLeastSquares(graph, where=where, **opts)
+        self.wls, self.active = self.full, np.ones(graph.m, dtype=bool)
+        self._done, self.rebuilds = 0, 0
+
+    @property
+    def iterations(self):
+        """Gauss–Newton steps over every system built."""
+        return self._done + self.wls.iterations
+
+    def edge_chi2(self, x):
+        return self.full.edge_chi2(x)
+
+    def prior_chi2(self, x):
+        return self.full.system._prior_chi2(x)
+
+    def solve(self, x, w, **options):
+        want = w != 0
+        changed = int(np.count_nonzero(want != self.active))
+        if np.any(want & ~self.active) or changed >= max(1.0, REBUILD_FRACTION * w.size):
+            self._rebuild(want)
+        return self.wls.solve(x, w[self.active], **options)
+
+    def _rebuild(self, want):
+        if want.all():
+            wls = self.full
+        else:
+            try:
+                wls = WeightedLeastSquares(inlier_graph(self.graph, want), where=self.where,
+                                           **self.opts)
+            except (GaugeError, GraphError):  # the edges left do not fix every pose: keep all
+                want, wls = np.ones(want.size, dtype=bool), self.full
+        self._done += self.wls.iterations
+        wls.iterations = 0
+        self.wls, self.active = wls, want
+        self.rebuilds += 1
 
 
 def _tls_polish(wls, x, robust, c, max_rounds=20):
@@ -252,9 +308,7 @@ def gnc(
     start = check_choice(start, "start", where, ("initial", "least_squares"))
     robust = robust_edge_mask(graph, robust_edges, where)
     x = as_graph_poses(graph, initial, "initial", "initial guess")
-    wls = WeightedLeastSquares(
-        graph, fixed=fixed, prior=prior, error=error, backend=backend, where=where
-    )
+    wls = _ActiveSet(graph, dict(fixed=fixed, prior=prior, error=error, backend=backend), where)
     w = np.ones(graph.m)
     if start == "least_squares":
         x, _, _ = wls.solve(x, w)  # step 1: least squares, w = 1
@@ -292,7 +346,7 @@ def gnc(
     return _result(
         graph, x, f"gnc-{kind}", robust, wls.edge_chi2(x), w, c, len(mus),
         wls.iterations, converged, reason, t0, mu=mus, outliers_history=outliers,
-        prior_chi2=wls.system._prior_chi2(x),
+        prior_chi2=wls.prior_chi2(x),
     )
 
 

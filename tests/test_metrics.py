@@ -357,3 +357,22 @@ def test_bad_input_names_the_argument(call, error, match):
     with pytest.raises(error, match=match) as info:
         call()
     assert isinstance(info.value, ValueError | TypeError)
+
+
+def test_variance_factor_measures_the_information_scale():
+    """σ̂₀² ≈ 1 on simulated graphs whose information is right; scaling every information
+    matrix by s scales it by s exactly; a tree has no redundancy."""
+    import lagolib
+    from lagolib.metrics import variance_factor
+
+    values = []
+    for seed in range(5):
+        sim = lagolib.simulate.manhattan_world(n_poses=400, rng=seed)
+        x = lagolib.optimize(sim.graph).poses
+        values.append(variance_factor(sim.graph, x))
+        scaled = sim.graph.with_information(sim.graph.information * 0.02)
+        assert variance_factor(scaled, x) == pytest.approx(0.02 * values[-1], rel=1e-12)
+    assert 0.9 < np.mean(values) < 1.1
+    chain = lagolib.PoseGraph(np.zeros((3, 3)), [[0, 1], [1, 2]], [[1, 0, 0]] * 2, [np.eye(3)] * 2)
+    with pytest.raises(lagolib.GraphError, match="no redundancy"):
+        variance_factor(chain)
