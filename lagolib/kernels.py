@@ -212,8 +212,9 @@ class DCS(Kernel):
     ``s ∈ [0, 1]`` that scales its information by ``s²``, with a prior ``Φ (1 - s)²`` that
     keeps the switch on.  Agarwal et al. (2013) eliminate the switch variable and scale the
     closure in closed form by ``s = min(1, 2Φ / (Φ + χ²))`` with ``χ² = r²``, so the weight on
-    the information is ``w(r) = s²`` (GTSAM's ``mEstimator.DCS(Φ)`` weight).  Here ``Φ = c²`` (the scale in χ² units, :data:`INLIER_THRESHOLD` squared
-    by default; the paper's experiments use Φ = 1 with their graphs' information).
+    the information is ``w(r) = s²`` (GTSAM's ``mEstimator.DCS(Φ)`` weight).  Here ``Φ = c²``
+    (the scale in χ² units, :data:`INLIER_THRESHOLD` squared by default; the paper's
+    experiments use Φ = 1 with their graphs' information).
 
     ``ρ`` is the cost whose IRLS weight this is (``ψ = w r``, integrated): ``r²/2`` for
     ``r² <= Φ``, ``3Φ/2 - 2Φ² / (Φ + r²)`` beyond — bounded by ``3Φ/2``.
