@@ -255,3 +255,17 @@ def test_cli_outliers_and_solve_robust(tmp_path, capsys):
     np.testing.assert_allclose(solved.poses, ref.poses, atol=1e-6)
     assert main(["solve", str(path), "--robust", "huber", "--method", "sgd", "-o",
                  str(tmp_path / "s.g2o")]) == 2
+
+
+def test_gnc_without_its_zero_weight_edges_gives_the_same_answer(monkeypatch):
+    """Rebuilding the system without the edges whose weight reached 0 changes the cost, not
+    the answer: the same classification and poses as keeping every edge in the pattern."""
+    sim = _world(200, 5)
+    g, outlier = _with_random_outliers(sim.graph, 60, 4)
+    pruned = robust.gnc(g)
+    monkeypatch.setattr(robust, "REBUILD_FRACTION", np.inf)
+    kept = robust.gnc(g)
+    np.testing.assert_array_equal(pruned.inlier, kept.inlier)
+    np.testing.assert_array_equal(~pruned.inlier, outlier)
+    np.testing.assert_allclose(pruned.poses, kept.poses, atol=1e-7)  # both converged to 1e-10
+    assert pruned.iterations == kept.iterations  # the same continuation (μ steps)
