@@ -187,7 +187,7 @@ class TruncatedLeastSquares(Kernel):
     """Truncated least squares: least squares inside ``c``, a constant ``c²/2`` beyond.
 
     ``ρ(r) = min(r², c²)/2``; ``ψ(r) = r`` inside, 0 beyond; ``w(r) = 1`` inside, 0 beyond
-    (Yang et al. 2020, eq. (5)).  Not differentiable at ``c`` and flat beyond it: IRLS with
+    (Yang et al. 2020).  Not differentiable at ``c`` and flat beyond it: IRLS with
     this kernel alone keeps whatever classification its start implies — graduated
     non-convexity (:func:`lagolib.robust.gnc`) is how it is meant to be minimized.
 
@@ -199,7 +199,7 @@ class TruncatedLeastSquares(Kernel):
 
     def rho(self, r):
         r, c = _r(r), self.c
-        return 0.5 * np.minimum(r * r, c * c)  # ρ(r) = min(r², c²)/2, Yang et al. eq. (5)
+        return 0.5 * np.minimum(r * r, c * c)  # ρ(r) = min(r², c²)/2, Yang et al. 2020
 
     def weight(self, r):
         return np.where(_r(r) <= self.c, 1.0, 0.0)

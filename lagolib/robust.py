@@ -202,7 +202,7 @@ def _tls_polish(wls, x, robust, c, max_rounds=20):
     w = np.ones(robust.size)
     for rounds in range(1, max_rounds + 1):
         r2 = wls.edge_chi2(x)
-        w_new = np.where(robust & (r2 > c * c), 0.0, 1.0)  # TLS weight, Yang et al. eq. (5)
+        w_new = np.where(robust & (r2 > c * c), 0.0, 1.0)  # the TLS weight (Yang et al. 2020)
         if rounds > 1 and np.array_equal(w_new, w):
             return x, w, rounds - 1
         w = w_new

@@ -367,6 +367,12 @@ REFERENCE = {
     "ch10.check_icp_step": lambda: dict(icp_step=step_ok),
     "ch10.check_gate_prediction": _gate_prediction,
     "ch10.check_heading_sweep": _heading_sweep,
+    "ch11.check_dcs_weight": lambda: dict(
+        dcs_weight=lambda r, phi: np.minimum(1.0, 2.0 * phi / (phi + np.asarray(r) ** 2)) ** 2
+    ),
+    "ch11.check_gm_influence": lambda: dict(psi="c**4*r/(c**2 + r**2)**2"),
+    "ch11.check_most_downweighted": lambda: dict(most_downweighted="B"),
+    "ch11.check_breaking_ratio": lambda: dict(breaking_ratio=8.0),
     "ch02.check_jacobian_entry": lambda: dict(
         de_x_dtheta_i="-sin(theta_i + theta_z)*(x_j - x_i) + cos(theta_i + theta_z)*(y_j - y_i)"
     ),

@@ -575,6 +575,28 @@ WRONG = {
             ),
         ),
     ],
+    "11.1": [
+        ("the switch, not squared", lambda: dict(dcs_weight=lambda r, phi: np.minimum(
+            1.0, 2.0 * phi / (phi + r**2)))),
+        ("Cauchy's weight", lambda: dict(dcs_weight=lambda r, phi: 1.0 / (1.0 + r**2 / phi))),
+        ("1 % off", lambda: dict(dcs_weight=lambda r, phi: 1.01 * np.minimum(
+            1.0, 2.0 * phi / (phi + r**2)) ** 2)),
+    ],
+    "11.2": [
+        ("the weight", lambda: dict(psi="c**4/(c**2 + r**2)**2")),
+        ("no quotient rule", lambda: dict(psi="c**2*r/(c**2 + r**2)")),
+        ("twice", lambda: dict(psi="2*c**4*r/(c**2 + r**2)**2")),
+    ],
+    "11.3": [
+        ("largest in metres", lambda: dict(most_downweighted="C")),
+        ("the right closure", lambda: dict(most_downweighted="A")),
+        ("another", lambda: dict(most_downweighted="D")),
+    ],
+    "11.4": [
+        ("one ratio early", lambda: dict(breaking_ratio=4.0)),
+        ("the first ratio", lambda: dict(breaking_ratio=0.5)),
+        ("a count", lambda: dict(breaking_ratio=440)),
+    ],
 }
 
 #: exact values of reference answers that REFERENCE gives rounded (as read off a table)
