@@ -33,6 +33,9 @@ gauss_newton, optimize, Prior
 kernels
     Robust kernels (M-estimators): Huber, Cauchy, Geman–McClure, truncated least squares,
     DCS — each with ρ, ψ and the IRLS weight; GNC's surrogate weights.
+consistency
+    Pairwise consistency maximization (Mangelson et al. 2018): the consistency graph of the loop
+    closures under the odometry's first-order uncertainty, its maximum clique, ``pcm``.
 robust
     When loop closures lie: graduated non-convexity (``gnc``), every robust method behind
     ``robust.solve``, precision/recall ``scores``, ``certify_inliers`` (and what it does not
@@ -87,6 +90,7 @@ plotting
 from . import (
     certify,
     closed_form,
+    consistency,
     datasets,
     estimation,
     frontend,
@@ -164,6 +168,7 @@ __all__ = [
     "linalg",
     "gauss_newton",
     "kernels",
+    "consistency",
     "robust",
     "topology",
     "estimation",

@@ -45,6 +45,7 @@ import numpy as np
 
 from .certify import solve as certified_solve
 from .checks import check_bool, check_choice, check_int, check_real
+from .consistency import pcm
 from .errors import GaugeError, GraphError, OptionError, OptionTypeError
 from .gauss_newton import WeightedLeastSquares, optimize, robust_edge_mask
 from .graph import PoseGraph, as_graph_poses, check_graph
@@ -372,7 +373,7 @@ def _result(graph, x, method, robust, terms, weights, c, iterations, gn_iteratio
 
 def solve(graph, initial=None, *, method="gnc-tls", c=INLIER_THRESHOLD,
           robust_edges="closures", fixed=None, prior=None, error="t2v", backend="auto",
-          confidence=0.99):
+          confidence=0.999):
     """Every robust method of lagolib behind one call, with one kind of result.
 
     Parameters
@@ -428,8 +429,6 @@ def solve(graph, initial=None, *, method="gnc-tls", c=INLIER_THRESHOLD,
         return _result(graph, res.poses, method, mask, terms, res.weights, c, 1, res.iterations,
                        res.converged, res.reason, t0, prior_chi2=res.chi2 - float(terms.sum()))
     # PCM: the largest set of mutually consistent loop closures (needs the odometry chain)
-    from .consistency import pcm  # noqa: PLC0415 - a layer below; imported where used
-
     t_pcm = time.perf_counter()
     kept = pcm(graph, confidence=confidence)
     seconds_pcm = time.perf_counter() - t_pcm
