@@ -1728,7 +1728,7 @@ def _parser():
         description=(
             "Classify the loop closures of a pose graph as inliers or outliers with a robust\n"
             "back end (lagolib.robust.solve; default gnc-tls: graduated non-convexity with\n"
-            "truncated least squares, no initial guess needed) and list the outliers: edge\n"
+            "truncated least squares, from the file's poses) and list the outliers: edge\n"
             "index, vertex ids and chi2 at the robust estimate.  --json prints the numbers.\n\n"
             "examples:\n"
             "  lagolib outliers intel\n"

@@ -8,7 +8,9 @@ the whole map.  This module puts together what the rest of lagolib provides:
   truncated-least-squares or Geman–McClure kernel: start from the convex least-squares problem,
   make the kernel non-convex step by step (the control parameter μ), and re-solve a weighted
   least-squares problem (:class:`lagolib.gauss_newton.WeightedLeastSquares`) at every step.
-  It needs no good start; GTSAM's ``GncLMOptimizer`` is the same method.
+  With globally solved weighted problems it needs no good start; here they are solved by
+  Gauss–Newton, so it can still fail from a drifted start (``benchmarks/ROBUST.md``: intel with
+  100 random wrong closures).  GTSAM's ``GncLMOptimizer`` is the same method.
 * :func:`solve` — one call for every method: ``"gnc-tls"``, ``"gnc-gm"``, the IRLS kernels of
   :mod:`lagolib.kernels` inside :func:`lagolib.optimize` (``"huber"``, ``"cauchy"``, ``"gm"``,
   ``"tls"``, ``"dcs"``), and pairwise consistency maximization (``"pcm"``,
