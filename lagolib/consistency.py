@@ -305,7 +305,7 @@ def maximum_clique(adjacency, *, exact=True, time_limit=None):
     clique, optimal = _maximum_clique(A, exact, deadline)
     if not optimal:
         warnings.warn(
-            f"maximum_clique: time_limit={time_limit} s ran out; the clique of {clique.size} "
+            f"maximum_clique: its time budget of {time_limit} s ran out; the clique of {clique.size} "
             "vertices returned may not be maximum",
             CliqueTimeLimitWarning,
             stacklevel=2,
@@ -733,6 +733,7 @@ def pcm(graph, *, confidence=0.999, exact=True, time_limit=PCM_TIME_LIMIT):
     (False, True)
     """
     where = "pcm"
+    check_graph(graph, where)
     exact = check_bool(exact, "exact", where)
     if time_limit is not None:
         time_limit = check_real(time_limit, "time_limit", where, minimum=0.0, strict=True)

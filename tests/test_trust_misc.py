@@ -425,6 +425,7 @@ NOT_SHOWN = {
     ("gauss_newton.py", ", kernel="): "a repr (OptimizeResult's robust part)",
     ("robust.py", "RobustResult(method="): "a repr",
     ("kernels.py", "not also as c="): "the command passes no scale",
+    ("kernels.py", "(c="): "a repr (Huber(c=...))",
     ("graph.py", "PoseGraph(n="): "a repr",
     ("sgd.py", "SGDResult(chi2="): "a repr",
     ("closed_form.py", "initial="): "the command has no closed-form method",
