@@ -51,6 +51,7 @@ from .consistency import pcm
 from .errors import GaugeError, GraphError, OptionError, OptionTypeError
 from .gauss_newton import WeightedLeastSquares, optimize, robust_edge_mask
 from .graph import PoseGraph, as_graph_poses, check_graph
+from .graph import chi2 as graph_chi2
 from .kernels import INLIER_THRESHOLD, KERNELS, gnc_initial_mu, gnc_weights
 from .kernels import kernel as as_kernel
 
@@ -354,8 +355,11 @@ def gnc(
 
 
 def _result(graph, x, method, robust, terms, weights, c, iterations, gn_iterations,
-            converged, reason, t0, *, prior_chi2=0.0, **extra):
-    inlier = ~robust | (terms <= c * c)
+            converged, reason, t0, *, prior_chi2=0.0, inlier=None, **extra):
+    """The RobustResult of poses ``x`` with edge terms ``terms`` (shape (m,)); ``inlier``
+    defaults to the residual test ``r <= c`` on the ``robust`` edges (PCM passes its own)."""
+    if inlier is None:
+        inlier = ~robust | (terms <= c * c)
     return RobustResult(
         poses=x,
         graph=graph.with_poses(x),
@@ -427,7 +431,7 @@ def solve(graph, initial=None, *, method="gnc-tls", c=INLIER_THRESHOLD,
         res = optimize(graph, initial, robust=as_kernel(method, c), robust_edges=robust_edges,
                        **opts)
         mask = robust_edge_mask(graph, robust_edges, where)
-        terms = _edge_terms(graph, res.poses, error)
+        terms = graph_chi2(graph, res.poses, per_edge=True, error=error)
         return _result(graph, res.poses, method, mask, terms, res.weights, c, 1, res.iterations,
                        res.converged, res.reason, t0, prior_chi2=res.chi2 - float(terms.sum()))
     # PCM: the largest set of mutually consistent loop closures (needs the odometry chain)
@@ -441,10 +445,8 @@ def solve(graph, initial=None, *, method="gnc-tls", c=INLIER_THRESHOLD,
         x, _, reason = wls.solve(x, keep.astype(float))
         terms = wls.edge_chi2(x)
         res = _result(graph, x, method, graph.loop_closure, terms, keep.astype(float), c, 1,
-                      wls.iterations, True, reason, t0,
-                      prior_chi2=wls.system._prior_chi2(x))
-        res.inlier = keep.copy()  # PCM's classification, not the residual test
-        res.chi2_inliers = float(terms[keep].sum()) + wls.system._prior_chi2(x)
+                      wls.iterations, True, reason, t0, prior_chi2=wls.system._prior_chi2(x),
+                      inlier=keep.copy())  # PCM's classification, not the residual test
     else:  # "pcm+gnc-tls": GNC on what PCM kept; PCM's rejections stay rejected
         sub = inlier_graph(graph, keep)
         g = gnc(sub, initial, kernel="tls", c=c, **opts)
@@ -452,21 +454,13 @@ def solve(graph, initial=None, *, method="gnc-tls", c=INLIER_THRESHOLD,
         inlier[np.flatnonzero(keep)[g.inlier]] = True
         weights = np.zeros(graph.m)
         weights[np.flatnonzero(keep)] = g.weights
-        terms = _edge_terms(graph, g.poses, error)
+        terms = graph_chi2(graph, g.poses, per_edge=True, error=error)
         res = _result(graph, g.poses, method, graph.loop_closure, terms, weights, c,
                       g.iterations, g.gauss_newton_iterations, g.converged, g.reason, t0,
-                      mu=g.mu, outliers_history=g.outliers_history,
-                      prior_chi2=g.chi2 - float(_edge_terms(sub, g.poses, error).sum()))
-        res.inlier = inlier
-        res.chi2_inliers = float(terms[inlier].sum()) + res.chi2 - float(terms.sum())
+                      mu=g.mu, outliers_history=g.outliers_history, inlier=inlier,
+                      prior_chi2=g.chi2 - float(terms[keep].sum()))  # sub's edges: terms[keep]
     res.timings["pcm"] = seconds_pcm
     return res
-
-
-def _edge_terms(graph, poses, error):
-    from .graph import chi2 as graph_chi2
-
-    return graph_chi2(graph, poses, per_edge=True, error=error)
 
 
 class Scores(NamedTuple):
