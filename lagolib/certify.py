@@ -85,12 +85,18 @@ from .gauss_newton import (
     _LevenbergMarquardtDamping,
     _LinearSolver,
     _minimize,
+    _optimize,
     _Trace,
     optimize,
 )
 from .graph import PoseGraph, as_graph_poses, chi2
-from .lago import RegularizationWarning, lago
-from .linalg import SparseCholesky
+from .lago import RegularizationWarning, lago, pose_ordering
+from .linalg import (
+    SparseCholesky,
+    _auto_backend,
+    _Pardiso,
+    single_threaded_blas,
+)
 from .metrics import sesync_parameters
 
 __all__ = [
@@ -158,7 +164,7 @@ _REFINE_STEPS = 3
 
 # ----------------------------------------------------------------------------- the problem
 def _diagonal_slots(F):
-    """Data slot of every diagonal entry of a CSC matrix with sorted indices, shape (N,)."""
+    """Data slot of every diagonal entry of a CSC (or CSR) matrix with sorted indices, shape (N,)."""
     col = np.repeat(np.arange(F.shape[0]), np.diff(F.indptr))
     on_diag = np.flatnonzero(F.indices == col)
     slots = np.full(F.shape[0], -1, dtype=np.int64)
@@ -215,7 +221,8 @@ class ChordalProblem:
         unit = ChordalProblem(
             self.graph, self.i, self.j, self.t_meas, self.R_meas, self.kappa / s, self.tau / s
         )
-        unit.__dict__["M"] = self.M / s  # M is linear in the weights: not assembled twice
+        if "M" in self.__dict__:  # M is linear in the weights: not assembled twice
+            unit.__dict__["M"] = self.M / s
         return unit, s
 
     @cached_property
@@ -251,31 +258,34 @@ class ChordalProblem:
         return F, zrows, _diagonal_slots(F)[zrows.ravel()]
 
     @cached_property
-    def _ordered_form(self):
-        """The full real form of ``M'`` in a fill-reducing order of the poses (AMD on the pose
-        graph, each pose's rows ``Re t, Im t, Re z, Im z`` kept together): ``(F, perm, slots)``
-        with ``F = K[perm][:, perm]`` at zero multipliers and ``slots`` the data slots of the
-        rotation diagonal, in the order of ``zrows.ravel()``."""
-        import qdldl
-
-        F, zrows, _ = self._real_form
-        n, N = self.n, 2 * self.n - 1
-        e = self.graph.edges
-        A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
-        A = A + A.T
-        A = sp.diags(np.asarray(A.sum(axis=1)).ravel() + 1.0) - A  # Laplacian + I: definite
-        A = sp.triu(A, format="csc")
-        order = qdldl.Solver(A, upper=True).factors()[2]  # AMD on the pose graph (n x n)
-        rows = np.full((n, 4), -1, dtype=np.int64)
-        rows[1:, 0], rows[1:, 1] = np.arange(n - 1), N + np.arange(n - 1)
-        rows[:, 2], rows[:, 3] = zrows[0], zrows[1]
+    def _hermitian_form(self):
+        """``M'``: ``M`` without the first translation's row and column (``t_0`` is the gauge),
+        complex Hermitian of shape (2 n - 1, 2 n - 1), in a stable fill-reducing order of the
+        poses (:func:`lagolib.lago.pose_ordering`, :func:`lagolib.linalg.elimination_ordering`
+        on the pose graph away from pose 0; each pose's rows ``t_i, z_i`` together):
+        ``(F, U, zpos, f_slots, u_slots)`` with ``F`` the whole matrix (CSC, sorted), ``U`` its
+        upper triangle (CSR, int32 indices, what PARDISO reads), ``zpos`` the position of
+        ``z_i``'s row, and the data slots of the rotation diagonal in ``F`` and ``U``
+        (``M_zz``'s diagonal holds ``sum kappa > 0``, so it is stored)."""
+        n = self.n
+        # Gauss-Newton's (and LAGO's) order with pose 0 fixed, computed once per graph; pose 0
+        # last: every pose is eliminated away from it
+        order = np.append(1 + pose_ordering(self.graph, int(self.graph.ids[0])), 0)
+        rows = np.full((n, 2), -1, dtype=np.int64)
+        rows[1:, 0], rows[:, 1] = np.arange(n - 1), n - 1 + np.arange(n)
         perm = rows[order].ravel()
-        perm = perm[perm >= 0]
-        Fp = F[perm][:, perm].tocsc()
-        Fp.sort_indices()
-        iperm = np.empty_like(perm)
-        iperm[perm] = np.arange(perm.size)
-        return Fp, perm, _diagonal_slots(Fp)[iperm[zrows.ravel()]]
+        perm = perm[perm >= 0] + 1  # rows of M (row 0, t_0, left out)
+        F = self.M[perm][:, perm].tocsc()
+        F.sort_indices()
+        ipos = np.empty(2 * n, dtype=np.int64)
+        ipos[perm] = np.arange(perm.size)
+        zpos = ipos[n + np.arange(n)]
+        U = sp.triu(F, format="csr")
+        U.sort_indices()
+        U = sp.csr_matrix(
+            (U.data, U.indices.astype(np.int32), U.indptr.astype(np.int32)), shape=U.shape
+        )
+        return F, U, zpos, _diagonal_slots(F)[zpos], _diagonal_slots(U)[zpos]
 
     @cached_property
     def _translation_factor(self):
@@ -612,52 +622,42 @@ class ChordalNewtonSystem(ChordalSystem):
     (the ``-lambda_i omega_i^2`` is the circle's curvature).  So ``b = 2 Re(P^H M x)`` and
     ``H = 2 Re(P^H S P)`` — the certificate's ``S`` restricted to the tangent directions, which
     is indefinite near a saddle; Levenberg's damping (:func:`refine`'s ``method="lm"``) handles
-    that.  Both are formed as sparse products of the real forms, ``O(m)``.
+    that.
+
+    Assembled in closed form on Gauss–Newton's fixed pattern (:class:`ChordalSystem`, the
+    chordal residuals ``r = A P u`` are linear in ``u`` to first order, so ``Re(P^H M P) =
+    J^T W J``): ``H = 2 (J^T W J - diag(0, 0, lambda))`` per pose and ``b = 2 J^T W r``, ``O(m)``
+    — the same matrix as the products of the real forms, on the pattern (and so the symbolic
+    analysis) of :func:`lagolib.optimize`'s ``H`` for the same graph and fixed poses.
     """
-
-    def __init__(self, problem, *, fixed=()):
-        super().__init__(problem, fixed=fixed)
-        n, k = problem.n, self.free.size
-        self._P_rows = np.stack([self.free, 2 * n + self.free], axis=1)  # Re t, Im t rows
-        self._P_cols = np.arange(3 * k).reshape(k, 3)
-        self._z_re_rows, self._z_im_rows = n + self.free, 3 * n + self.free
-        self._shape = (4 * n, 3 * k)
-        self._pattern = None
-
-    def _P(self, poses):
-        """``P`` in real form, shape (4 n, 3 k): columns ``(dx, dy, omega)`` of the free poses."""
-        th = poses[self.free, 2]
-        c = self._P_cols
-        rows = np.concatenate(
-            [self._P_rows[:, 0], self._P_rows[:, 1], self._z_re_rows, self._z_im_rows]
-        )
-        cols = np.concatenate([c[:, 0], c[:, 1], c[:, 2], c[:, 2]])
-        vals = np.concatenate(
-            [np.ones(2 * c.shape[0]), -np.sin(th), np.cos(th)]
-        )  # i z = -sin + i cos
-        return sp.csr_matrix((vals, (rows, cols)), shape=self._shape)
 
     def assemble(self, poses):
         """``H = 2 Re(P^H S P)`` (free poses, (3 k, 3 k)), ``b = 2 Re(P^H M x)`` and ``f``."""
-        p = self.problem
-        n = p.n
-        x = to_complex(poses)
-        Mx = p.M @ x
-        lam = _multipliers(x, Mx, n)  # at the current point
-        P = self._P(poses)
-        if self._pattern is None:
-            self._pattern = _FixedPattern(_template([P], p._M_real))
-        S = p._M_real - sp.diags(np.concatenate([np.zeros(n), lam, np.zeros(n), lam]))
-        H = P.T @ (S @ P)
-        H = self._pattern.put(H + H.T)  # 2 Re(P^H S P), symmetric
-        b = 2.0 * (P.T @ np.concatenate([Mx.real, Mx.imag]))  # 2 Re(P^H M x)
-        # f as the sum of the edge terms (objective's): x^H M x cancels, and at f ~ 0 it can
-        # come out negative — a sum of squares is never reported below zero
-        return H, b, self.objective(poses)
+        H, b, f = super().assemble(poses)  # J^T W J, J^T W r and the sum of the edge terms
+        lam = _edge_multipliers(self.problem, to_complex(poses))  # at the current point
+        H.data[self._diag_slot[2::3]] -= lam[self.free]  # the circles' curvature, -lambda_i
+        H.data *= 2.0
+        # f as the sum of the edge terms: x^H M x cancels, and at f ~ 0 it can come out
+        # negative — a sum of squares is never reported below zero
+        return H, 2.0 * b, f
 
-    def damped(self, H, lam):
-        """``H + lam I`` on ``H``'s fixed pattern."""
-        return self._pattern.damped(H, lam)
+
+def _edge_multipliers(p, x):
+    """:func:`multipliers` without ``M``: ``(M x)_{n+i} = df / d conj(z_i)`` summed over the
+    edges at pose ``i`` — ``-tau r_t conj(t~) - kappa r_z conj(R~)`` where it is the first pose,
+    ``kappa r_z`` where it is the second — and ``lambda_i = Re(conj(z_i) (M x)_{n+i})``."""
+    n = p.n
+    t, z = x[:n], x[n:]
+    r_t = t[p.j] - t[p.i] - z[p.i] * p.t_meas  # t_j - t_i - z_i t~
+    r_z = z[p.j] - z[p.i] * p.R_meas  # z_j - z_i R~
+    at_i = -p.tau * r_t * p.t_meas.conj() - p.kappa * r_z * p.R_meas.conj()
+    at_j = p.kappa * r_z
+    Mx = (
+        np.bincount(p.i, at_i.real, n)
+        + np.bincount(p.j, at_j.real, n)
+        + 1j * (np.bincount(p.i, at_i.imag, n) + np.bincount(p.j, at_j.imag, n))
+    )
+    return (z.conj() * Mx).real
 
 
 def refine(
@@ -699,6 +699,13 @@ def refine(
     OptimizeResult
         ``error="chordal"``; ``chi2`` and ``chi2_history`` hold the chordal cost ``f``.
     """
+    return _refine(**locals(), solver=None)
+
+
+def _refine(problem, initial, *, method, max_iterations, tol, step_tol, verbose, solver):
+    """:func:`refine` with ``solver`` a :class:`lagolib.gauss_newton._LinearSolver` to reuse
+    (or None): the Newton matrix has Gauss–Newton's pattern, so :func:`solve` factors both
+    with one symbolic analysis."""
     t0 = time.perf_counter()
     p = _problem(problem, "refine")
     where = "refine"
@@ -714,7 +721,9 @@ def refine(
         system, control = ChordalSystem(unit, fixed=fixed), _GaussNewtonSteps(10)
     else:
         system, control = ChordalNewtonSystem(unit, fixed=fixed), _LevenbergMarquardtDamping(1e-8)
-    solve_ = _LinearSolver("cholesky", "auto")
+    if solver is None:
+        solver = _LinearSolver("cholesky", "auto")
+    solve_ = solver.bind(system)
     trace = _Trace(method, verbose)
     x, f, stop = _minimize(system, x, control, solve_, trace, max_iterations, tol, step_tol, None)
     converged, reason = stop or (False, f"reached max_iterations={max_iterations}")
@@ -838,58 +847,85 @@ def reduced_certificate_matrix(problem, x):
 
 
 class _ShiftedFactor:
-    """Sparse ``L U`` (``= L D L^T``) of ``K + s I_z`` for several shifts ``s``.
+    """Sparse ``L D L^H`` of ``K + s I_z`` for several shifts ``s``, and its inertia.
 
-    ``K`` is :func:`reduced_certificate_matrix` at multipliers ``lam``; only the rotation rows'
-    diagonal changes with ``lam`` and ``s``, so the real form of ``M`` is built and ordered once
-    per problem (``ChordalProblem._ordered_form``: AMD on the ``n``-pose graph, each pose's four
-    rows together) and its diagonal overwritten.  SuperLU (supernodal) factors it in that order
-    with diagonal pivots — ``U``'s diagonal is ``D`` — about twice as fast here as qdldl with
-    its own AMD on the ``4 n`` rows (city10000).  Positive definite iff no pivot was exchanged
-    and every pivot is positive; the number of negative pivots is the number of eigenvalues
-    below ``-s`` (Sylvester's law of inertia).
+    ``K`` is the certificate matrix ``S`` without the first translation
+    (:func:`reduced_certificate_matrix`), factored in its complex Hermitian form ``M' -
+    diag(0, lambda) + s I_z`` of ``2 n - 1`` rows (``ChordalProblem._hermitian_form``, built and
+    ordered once per problem; only the rotation diagonal changes with ``lam`` and ``s``): half
+    the rows of the real form and a quarter of its factor's entries.  Positive definite iff no
+    pivot was perturbed or exchanged and every pivot is positive; the number of negative
+    pivots is the number of eigenvalues of ``S~`` below ``-s`` (Sylvester's law of inertia).
+
+    Two engines, chosen as :class:`lagolib.linalg.SparseCholesky`'s ``backend="auto"`` chooses
+    for ``4 n - 2`` real rows: MKL PARDISO (``mtype = -4``, complex Hermitian indefinite,
+    supernodal, 1 x 1 pivots in the given order, the inertia from ``iparm[21], iparm[22]``; the
+    symbolic analysis once per certificate, one numerical factorization per shift) or SciPy's
+    SuperLU on the complex matrix with diagonal pivots (``U``'s diagonal is ``D``).
 
     A factorization is trusted only after a check: every solve measures its componentwise
-    backward error ``max_i |b - A x|_i / (|A| |x| + |b|)_i`` (two sparse products), refines a bad one
-    (:data:`SOLVE_TOL`, at most ``_REFINE_STEPS`` steps) and refuses one that stays bad
+    backward error ``max_i |b - A x|_i / (|A| |x| + |b|)_i`` (two sparse products), refines a bad
+    one (:data:`SOLVE_TOL`, at most ``_REFINE_STEPS`` steps) and refuses one that stays bad
     (:class:`~lagolib.errors.BackendError`); a positive definite verdict is checked by one such
-    solve of a fixed random right-hand side.  ``backward_error`` is the largest one seen.
+    solve of a fixed random right-hand side.  ``backward_error`` is the largest one seen.  A
+    factorization that is not positive definite is never solved with.
     """
 
     def __init__(self, problem, lam):
-        self._F, self._perm, self._slots = problem._ordered_form
-        self.zrows = problem._real_form[1]
-        self._base = self._F.data[self._slots] - lam[np.arange(self._slots.size) % lam.size]
+        F, U, self._zpos, self._f_slots, self._u_slots = problem._hermitian_form
+        self._F, self._U = F, U
+        self._base = F.data[self._f_slots] - lam  # M_zz's diagonal minus the multipliers
+        self.engine = "pardiso" if _auto_backend(2 * F.shape[0]) == "pardiso" else "superlu"
+        self._pardiso = None  # the analysis, once (PARDISO)
         self._lu = self._A = self._abs = None
         self.shift = None
         self.backward_error = 0.0
 
     def factor(self, shift):
         """Factor ``K + shift I_z``; True when it is positive definite (and then checked)."""
-        data = self._F.data.copy()
-        data[self._slots] = self._base + shift
-        A = sp.csc_matrix((data, self._F.indices, self._F.indptr), shape=self._F.shape)
         self._lu, self.shift = None, shift
-        try:
-            lu = spla.splu(
-                A,
-                permc_spec="NATURAL",
-                diag_pivot_thresh=0.0,
-                options={"SymmetricMode": True},
-            )
-        except RuntimeError:  # an exactly zero pivot: singular, not positive definite
-            return False
-        no_swap = np.array_equal(lu.perm_r, np.arange(A.shape[0]))
-        if not (no_swap and np.all(lu.U.diagonal() > 0)):
-            return False  # an indefinite factor is never solved with
-        self._lu, self._A, self._abs = lu, A, abs(A)
+        data = self._F.data.copy()
+        data[self._f_slots] = self._base + shift
+        A = sp.csc_matrix((data, self._F.indices, self._F.indptr), shape=self._F.shape)
+        N = A.shape[0]
+        if self.engine == "pardiso":
+            udata = self._U.data.copy()
+            udata[self._u_slots] = self._base + shift
+            if self._pardiso is None:  # given order (the problem's): no METIS of its own
+                self._pardiso = _Pardiso(self._U, np.arange(N, dtype=np.int32), mtype=-4)
+            positive, _, perturbed = self._pardiso.inertia(udata)
+            if positive != N or perturbed:
+                return False  # an indefinite factor is never solved with
+            self._lu = _PardisoSolve(self._pardiso, udata)
+        else:
+            try:
+                with single_threaded_blas():  # small supernodes: threads only wait
+                    lu = spla.splu(
+                        A,
+                        permc_spec="NATURAL",
+                        diag_pivot_thresh=0.0,
+                        options={"SymmetricMode": True},
+                    )
+            except RuntimeError:  # an exactly zero pivot: singular, not positive definite
+                return False
+            no_swap = np.array_equal(lu.perm_r, np.arange(N))
+            if not (no_swap and np.all(lu.U.diagonal().real > 0)):
+                return False
+            self._lu = lu
+        self._A, self._abs = A, abs(A)
         # the verdict rests on the factors: one solve must reproduce its right-hand side
-        probe = np.random.default_rng(0).standard_normal(A.shape[0])
+        probe = np.random.default_rng(0).standard_normal((N, 2)) @ np.array([1.0, 1j])
         self._solve_ordered(probe)
         return True
 
     def _solve_ordered(self, b):
-        """``A^-1 b`` in the factor's (AMD) order, with the backward-error check."""
+        """``A^-1 b`` in the factor's order, with the backward-error check."""
+        if self.engine == "pardiso":
+            return self._checked_solve(b)
+        with single_threaded_blas():
+            return self._checked_solve(b)
+
+    def _checked_solve(self, b):
         x = self._lu.solve(b)
         abs_b = np.abs(b)
         for step in range(_REFINE_STEPS + 1):
@@ -904,23 +940,38 @@ class _ShiftedFactor:
         self.backward_error = max(self.backward_error, err)
         if not err <= SOLVE_TOL:
             relative = float(np.linalg.norm(r) / max(np.linalg.norm(b), np.finfo(float).tiny))
+            which = "PARDISO" if self.engine == "pardiso" else "SuperLU"
             raise BackendError(
-                f"certify: the sparse L D L^T factorization (SuperLU) of the certificate matrix "
-                f"K + {self.shift:.3g} I_z ({self._A.shape[0]} rows) is inaccurate: a solve with "
-                f"it has backward error {err:.3g} (relative residual |Ax - b| / |b| = "
+                f"certify: the sparse L D L^H factorization ({which}) of the certificate matrix "
+                f"K + {self.shift:.3g} I_z ({self._A.shape[0]} complex rows) is inaccurate: a "
+                f"solve with it has backward error {err:.3g} (relative residual |Ax - b| / |b| = "
                 f"{relative:.3g}) after {_REFINE_STEPS} steps of iterative refinement, above "
                 f"{SOLVE_TOL:g}; its verdict cannot be trusted — rescale the information matrices "
                 "(weights spanning many orders of magnitude), or report the graph"
             )
         return x
 
-    def solve(self, rhs):
-        """``(K + shift I_z)^-1 rhs`` in ``K``'s own order (checked, see the class)."""
+    def solve_rotations(self, v):
+        """``(S~ + shift I)^-1`` in real form: ``v`` of shape (2 n,) holds ``[Re y; Im y]`` of a
+        rotation vector ``y``; the translations are eliminated by the solve (checked, see the
+        class)."""
         if self._lu is None:  # pragma: no cover - the callers solve with positive definite factors
             raise NotPositiveDefiniteError("certify: no positive definite factor to solve with")
-        out = np.empty_like(rhs)
-        out[self._perm] = self._solve_ordered(rhs[self._perm])
-        return out
+        n = self._zpos.size
+        rhs = np.zeros(self._A.shape[0], dtype=complex)
+        rhs[self._zpos] = v[:n] + 1j * v[n:]
+        out = self._solve_ordered(rhs)[self._zpos]
+        return np.concatenate([out.real, out.imag])
+
+
+class _PardisoSolve:
+    """``solve(b)`` with one PARDISO factorization (its values ``data``)."""
+
+    def __init__(self, pardiso, data):
+        self._pardiso, self._data = pardiso, data
+
+    def solve(self, b):
+        return self._pardiso.solve(self._data, b)
 
 
 @dataclass
@@ -1022,13 +1073,10 @@ def _smallest(factor, shift, k):
     """The ``k`` smallest eigenvalues of ``S~`` and the first eigenvector, by shift-and-invert
     Lanczos: ``factor`` holds ``K + shift I_z`` (positive definite, so ``-shift < lambda_min``),
     and the rotation block of its inverse is ``(S~ + shift I)^-1``."""
-    flat = factor.zrows.ravel()
-    N, nz = factor._F.shape[0], flat.size
+    nz = 2 * factor._zpos.size
 
     def op(v):
-        rhs = np.zeros(N)
-        rhs[flat] = np.ravel(v)
-        return factor.solve(rhs)[flat]
+        return factor.solve_rotations(np.ravel(v))
 
     A = spla.LinearOperator((nz, nz), matvec=op, dtype=float)
     kk = min(2 * k, nz - 1)  # every eigenvalue of the real form appears twice
@@ -1695,6 +1743,10 @@ def solve(
         eta = check_real(eta, "eta", where, minimum=0.0)
     verbose = check_bool(verbose, "verbose", where)
     p = chordal_problem(graph)  # checks n >= 2 and connectivity before any work
+    # one factorization object for Gauss-Newton, the chordal polish and the final Gauss-Newton:
+    # their matrices share the pose graph's pattern, so the ordering and the symbolic analysis
+    # are computed once
+    shared = _LinearSolver("cholesky", "auto")
     stages, timings = (
         [],
         dict.fromkeys(("lago", "gauss_newton", "refine", "certify", "escape"), 0.0),
@@ -1746,11 +1798,11 @@ def solve(
     else:
         start = as_graph_poses(graph, initial, "initial", "initial guess")
     start_chi2 = chi2(graph, start)
-    gn = _gauss_newton(graph, start)
+    gn = _gauss_newton(graph, start, shared)
     record(
         "Gauss-Newton", "gauss_newton", gn.timings["total"], chi2=gn.chi2, iterations=gn.iterations
     )
-    ref = refine(p, gn.poses)
+    ref = _polish(p, gn.poses, shared)
     record("chordal polish", "refine", ref.timings["total"], f=ref.chi2, iterations=ref.iterations)
     cert = certified_stage("certificate", ref.poses)
     best, best_cert, bound = ref.poses, cert, max(cert.lower_bound, 0.0)
@@ -1818,7 +1870,7 @@ def solve(
         # a loose polish at rank r is enough to find the basin: rounding + the rank-one Newton
         # polish converge fast; near a rank-deficient optimum Newton at rank r is only linear
         X, polished, spent = polish(X, r, LIFTED_ITERATIONS[0], spent, "", tol=LOOSE_TOL)
-        ref = refine(p, round_solution(p, X))  # back to rank one
+        ref = _polish(p, round_solution(p, X), shared)  # back to rank one
         record(
             "round + chordal polish",
             "refine",
@@ -1844,7 +1896,7 @@ def solve(
         bound = max(bound, X_cert.lower_bound)
     # Gauss-Newton on chi2 from the chordal point that was certified: the polish (and any
     # escape) may have left the basin of the first Gauss-Newton result
-    final = _gauss_newton(graph, best)
+    final = _gauss_newton(graph, best, shared)
     record(
         "Gauss-Newton",
         "gauss_newton",
@@ -1883,14 +1935,37 @@ def _lm_text(cert):
     )
 
 
-def _gauss_newton(graph, start):
-    """Gauss–Newton on χ² from ``start``; Levenberg–Marquardt when Gauss–Newton cannot proceed."""
+def _gauss_newton(graph, start, solver=None):
+    """Gauss–Newton on χ² from ``start``; Levenberg–Marquardt when Gauss–Newton cannot proceed.
+    ``solver`` (a ``_LinearSolver``) is reused by every run."""
+
+    def run(x, method):
+        options = dict(_OPTIMIZE_DEFAULTS, method=method)
+        return _optimize(graph, x, **options, solver=solver)
+
     try:
-        res = optimize(graph, start, method="gn")
+        res = run(start, "gn")
     except NotPositiveDefiniteError:
-        return optimize(graph, start, method="lm")
+        return run(start, "lm")
     if not res.converged:
-        lm = optimize(graph, res.poses, method="lm")
+        lm = run(res.poses, "lm")
         if lm.chi2 < res.chi2:
             return lm
     return res
+
+
+def _polish(problem, start, solver):
+    """:func:`refine` with its defaults, factoring with ``solver``."""
+    return _refine(problem, start, **_REFINE_DEFAULTS, solver=solver)
+
+
+def _defaults(fn, skip):
+    """``fn``'s keyword defaults, without ``skip``."""
+    import inspect
+
+    params = inspect.signature(fn).parameters.values()
+    return {p.name: p.default for p in params if p.name not in skip and p.default is not p.empty}
+
+
+_OPTIMIZE_DEFAULTS = _defaults(optimize, ("initial", "method"))
+_REFINE_DEFAULTS = _defaults(refine, ("initial",))

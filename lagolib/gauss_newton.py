@@ -63,6 +63,7 @@ from .kernels import kernel as as_kernel
 from .linalg import (
     BACKENDS,
     SparseCholesky,
+    _rows_key,
     core_size,
     elimination_ordering,
     expand_ordering,
@@ -624,10 +625,22 @@ class LinearSystem:
         and the poses with a prior) on the tree-like parts — and each pose's three rows follow it.
         """
         k = self.free.size
-        e = self._red[self.graph.edges]  # -1 where a pose is fixed
-        near = np.concatenate([e[e[:, 0] < 0, 1], e[e[:, 1] < 0, 0], self._red[self._prior_idx]])
-        perm = elimination_ordering(self._pose_pattern(), near[near >= 0])
-        return expand_ordering(perm, 3 * np.arange(k)[:, None] + np.arange(3))
+        return expand_ordering(self.pose_ordering(), 3 * np.arange(k)[:, None] + np.arange(3))
+
+    def pose_ordering(self):
+        """The order of the free poses behind :meth:`ordering` (positions in :attr:`free`),
+        computed once per graph structure, fixed poses and priors (LAGO's, with its anchor
+        fixed, is the same one)."""
+
+        def compute():
+            e = self._red[self.graph.edges]  # -1 where a pose is fixed
+            near = np.concatenate(
+                [e[e[:, 0] < 0, 1], e[e[:, 1] < 0, 0], self._red[self._prior_idx]]
+            )
+            return elimination_ordering(self._pose_pattern(), near[near >= 0])
+
+        key = ("elimination_ordering", _rows_key(self.fixed), _rows_key(self._prior_idx))
+        return self.graph._structural(key, compute)
 
     def core_rows(self):
         """Rows of ``H`` in the pose graph's 2-core (:func:`lagolib.linalg.core_size`): where
@@ -1063,6 +1076,18 @@ class _LinearSolver:
         self.factor = None
         self.iterations = []  # PCG iterations per solve
 
+    def bind(self, system):
+        """Solve ``system``'s matrices: a solver reused for a system with the same unknowns (the
+        same size and fixed poses) keeps its factor, whose ordering and symbolic analysis serve
+        every matrix of the same pattern (another pattern is analysed anew by
+        :meth:`SparseCholesky.refactor`); for other unknowns it starts afresh."""
+        key = (system.N, system.fixed.tobytes())
+        if self.factor is None or getattr(self, "_key", None) != key:
+            self.factor, self._key = None, key
+            self._ordering, self._auto_rows = system.ordering, system.core_rows
+        self.iterations = []
+        return self
+
     def __call__(self, H, rhs):
         if self.kind == "pcg":
             out = pcg(H, rhs, preconditioner="block_jacobi", rtol=1e-10, check=False)
@@ -1249,6 +1274,33 @@ def optimize(
     >>> res.converged, res.iterations <= 10, res.chi2 < lagolib.chi2(ex.graph)
     (True, True, True)
     """
+    return _optimize(**locals(), solver=None)
+
+
+def _optimize(
+    graph,
+    initial,
+    *,
+    method,
+    error,
+    fixed,
+    prior,
+    max_iterations,
+    tol,
+    step_tol,
+    linear_solver,
+    backend,
+    lambda_initial,
+    max_backtracks,
+    verbose,
+    callback,
+    robust,
+    robust_edges,
+    solver,
+):
+    """:func:`optimize`, with ``solver`` a :class:`_LinearSolver` to reuse (or None): a caller
+    that optimizes the same graph again (:func:`lagolib.certify.solve`) keeps its ordering and
+    symbolic analysis."""
     t_start = time.perf_counter()
     where = "optimize"
     check_graph(graph, where)
@@ -1271,7 +1323,9 @@ def optimize(
         kern = as_kernel(robust, where=f"{where}: robust")
         mask = robust_edge_mask(graph, robust_edges, where)
         system = RobustSystem(graph, kern, mask, fixed=fixed, prior=priors, error=error)
-    solve = _LinearSolver(linear_solver, backend, system.ordering, system.core_rows)
+    if solver is None or solver.kind != linear_solver or solver.backend != backend:
+        solver = _LinearSolver(linear_solver, backend)
+    solve = solver.bind(system)
     if method == "gn":
         control = _GaussNewtonSteps(max_backtracks)
     else:

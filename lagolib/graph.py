@@ -322,6 +322,15 @@ class PoseGraph:
         )
 
     # ------------------------------------------------------------------ structure
+    def _structural(self, key, compute):
+        """``compute()``, once per graph structure: kept in the cache this graph shares with
+        every ``with_poses`` copy, so only what depends on the edges alone (not the poses,
+        measurements or information) may be kept here — e.g. an elimination ordering, which
+        LAGO, Gauss–Newton and the certificate of one graph then compute once."""
+        if key not in self._cache:
+            self._cache[key] = compute()
+        return self._cache[key]
+
     @property
     def order(self):
         """ndarray, shape (n,): the rank of each vertex when vertices are sorted by id."""

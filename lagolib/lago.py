@@ -59,7 +59,7 @@ from .checks import check_choice, check_int, check_real
 from .errors import LagolibWarning
 from .estimation import BLUE, blue, joint_information
 from .graph import PoseGraph, check_graph, vertex_rows
-from .linalg import BACKENDS, core_size, elimination_ordering, expand_ordering
+from .linalg import BACKENDS, _rows_key, core_size, elimination_ordering, expand_ordering
 from .topology import (
     SpanningTree,
     _anchor_row,
@@ -412,6 +412,7 @@ class _FreePoses:
 
     def __init__(self, graph, anchor, where):
         root = _anchor_row(graph, anchor, where)
+        self._graph, self._root = graph, root
         red = np.full(graph.n, -1, dtype=np.int64)
         red[_free_rows(graph, root)] = np.arange(graph.n - 1)
         self._e = red[graph.edges]
@@ -442,8 +443,10 @@ class _FreePoses:
         return self._once("core", lambda: core_size(self.pattern()[0]))
 
     def ordering(self):
-        """:func:`lagolib.linalg.elimination_ordering` of the free poses."""
-        return self._once("ordering", lambda: elimination_ordering(*self.pattern()))
+        """:func:`lagolib.linalg.elimination_ordering` of the free poses (once per graph: the
+        same as Gauss–Newton's with the anchor fixed, :meth:`LinearSystem.pose_ordering`)."""
+        key = ("elimination_ordering", _rows_key([self._root]), _rows_key([]))
+        return self._graph._structural(key, lambda: elimination_ordering(*self.pattern()))
 
 
 def _position_blocks(graph, theta_full, Omega_Delta):

@@ -133,6 +133,26 @@ def _mkl_runtime():
     return lib
 
 
+def single_threaded_blas():
+    """A context in which OpenBLAS (NumPy's and SciPy's) runs on one thread.
+
+    SciPy's SuperLU calls the BLAS on small supernodes; with a multi-threaded OpenBLAS beside
+    another job on the same 2 cores, one factorization of the certificate matrix of a
+    10^4-pose world took 0.3-2.2 s instead of 0.06 s (measured).  Uses ``threadpoolctl``
+    (its controller found once).  MKL is left alone: changing its thread count between
+    PARDISO's phases of one factorization crashed it (a segmentation fault, measured).
+    """
+    ctl = _BLAS.get("controller")
+    if ctl is None:
+        from threadpoolctl import ThreadpoolController
+
+        ctl = _BLAS["controller"] = ThreadpoolController().select(internal_api="openblas")
+    return ctl.limit(limits=1)
+
+
+_BLAS = {}
+
+
 def available_backends():
     """The Cholesky backends importable here (``"qdldl"`` and ``"scipy"`` are always there)."""
     out = ["qdldl"] if _have_qdldl() else []
@@ -220,15 +240,17 @@ _PARDISO_ERRORS = {
 }
 
 
-def _pardiso_call(lib, pt, phase, n, data, indptr, indices, ordering, iparm, b, x):
-    """One call of MKL's ``pardiso`` for a real symmetric matrix (``mtype = -2``); its error code.
+def _pardiso_call(lib, pt, phase, n, data, indptr, indices, ordering, iparm, b, x, mtype=-2):
+    """One call of MKL's ``pardiso``; its error code.
 
-    ``data``, ``b`` and ``x`` are float64 arrays, ``indptr``, ``indices``, ``ordering`` and
-    ``iparm`` int32 arrays; ``b`` holds ``nrhs = b.shape[1]`` (or 1) right-hand sides.
+    ``mtype`` is PARDISO's matrix type: ``-2`` real symmetric indefinite (``data``, ``b``, ``x``
+    float64) or ``-4`` complex Hermitian indefinite (complex128); ``indptr``, ``indices``,
+    ``ordering`` and ``iparm`` are int32 arrays; ``b`` holds ``nrhs = b.shape[1]`` (or 1)
+    right-hand sides.
     """
     import ctypes
 
-    i32, f64 = ctypes.c_int32, ctypes.c_double
+    i32, void = ctypes.c_int32, ctypes.c_void_p
     err = i32(0)
     one = ctypes.byref(i32(1))
     nrhs = 1 if b.ndim == 1 else b.shape[1]
@@ -237,18 +259,19 @@ def _pardiso_call(lib, pt, phase, n, data, indptr, indices, ordering, iparm, b, 
         return a.ctypes.data_as(ctypes.POINTER(kind))
 
     lib.pardiso(
-        pt.ctypes.data_as(ctypes.c_void_p), one, one, ctypes.byref(i32(_MTYPE)),
-        ctypes.byref(i32(phase)), ctypes.byref(i32(n)), ptr(data, f64), ptr(indptr, i32),
-        ptr(indices, i32), ptr(ordering, i32), ctypes.byref(i32(nrhs)), ptr(iparm, i32),
-        ctypes.byref(i32(0)), ptr(b, f64), ptr(x, f64), ctypes.byref(err),
+        pt.ctypes.data_as(void), one, one, ctypes.byref(i32(mtype)),
+        ctypes.byref(i32(phase)), ctypes.byref(i32(n)), data.ctypes.data_as(void),
+        ptr(indptr, i32), ptr(indices, i32), ptr(ordering, i32), ctypes.byref(i32(nrhs)),
+        ptr(iparm, i32), ctypes.byref(i32(0)), b.ctypes.data_as(void), x.ctypes.data_as(void),
+        ctypes.byref(err),
     )  # fmt: skip
     return err.value
 
 
-def _pardiso_release(lib, pt, n):
+def _pardiso_release(lib, pt, n, mtype=-2):
     """Free PARDISO's internal memory for one handle ``pt`` (phase -1)."""
     i, d = np.zeros(1, dtype=np.int32), np.zeros(1)
-    _pardiso_call(lib, pt, -1, n, d, i, i, i, np.zeros(64, dtype=np.int32), d, d)
+    _pardiso_call(lib, pt, -1, n, d, i, i, i, np.zeros(64, dtype=np.int32), d, d, mtype)
 
 
 # PARDISO's matrix type: real symmetric *indefinite*, factored as L D L^T with 1 x 1 diagonal
@@ -261,7 +284,8 @@ _MTYPE = -2
 
 
 class _Pardiso:
-    """MKL PARDISO on one sparsity pattern of a real symmetric matrix (``mtype = -2``).
+    """MKL PARDISO on one sparsity pattern of a real symmetric matrix (``mtype = -2``), or of a
+    complex Hermitian one (``mtype = -4``, :mod:`lagolib.certify`'s certificate matrix).
 
     Phase 11 — the nested-dissection (METIS) ordering and the supernodal symbolic factorization —
     runs once, in the constructor; :meth:`factor` (phase 22) and :meth:`solve` (phase 33) reuse
@@ -269,20 +293,21 @@ class _Pardiso:
     ``ordering`` (row ``k`` of the factor is row ``ordering[k]`` of ``U``) replaces METIS;
     otherwise METIS's ordering is returned in :attr:`ordering`.  The factorization is
     ``L D L^T`` with 1 x 1 pivots; a matrix whose inertia is not ``(n, 0, 0)``, or one that needed
-    a perturbed pivot, is reported as not positive definite.
+    a perturbed pivot, is reported as not positive definite; :meth:`inertia` reports it instead.
     """
 
-    def __init__(self, U, ordering=None):
+    def __init__(self, U, ordering=None, mtype=_MTYPE):
         import ctypes
         import weakref
 
         self._lib = _mkl_runtime()
         self.n = U.shape[0]
+        self.mtype = mtype
         self.pt = np.zeros(64, dtype=np.int64)  # PARDISO's opaque handle
         self.iparm = np.zeros(64, dtype=np.int32)
         self._lib.pardisoinit(
             self.pt.ctypes.data_as(ctypes.c_void_p),
-            ctypes.byref(ctypes.c_int32(_MTYPE)),
+            ctypes.byref(ctypes.c_int32(mtype)),
             self.iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
         )
         self.iparm[1] = 2  # nested dissection from METIS
@@ -308,15 +333,17 @@ class _Pardiso:
             self.iparm[4] = 1  # use the ordering given in perm
             self.ordering = np.ascontiguousarray(ordering, dtype=np.int32)
         self.indptr, self.indices = U.indptr, U.indices
-        self._finalizer = weakref.finalize(self, _pardiso_release, self._lib, self.pt, self.n)
+        self._finalizer = weakref.finalize(
+            self, _pardiso_release, self._lib, self.pt, self.n, mtype
+        )
         self._call(11, U.data)
 
     def _call(self, phase, data, b=None):
-        b = np.zeros(1) if b is None else b
+        b = np.zeros(1, dtype=data.dtype) if b is None else b
         x = np.empty_like(b)
         code = _pardiso_call(
             self._lib, self.pt, phase, self.n, data, self.indptr, self.indices, self.ordering,
-            self.iparm, b, x,
+            self.iparm, b, x, self.mtype,
         )  # fmt: skip
         if code == -4 or code == -7:
             raise NotPositiveDefiniteError(
@@ -331,6 +358,17 @@ class _Pardiso:
                 f"{hint}use backend='qdldl'"
             )
         return x
+
+    def inertia(self, data):
+        """Numerical factorization (phase 22) of ``data``: ``(positive, negative, perturbed)``
+        pivots of ``L D L^T`` — by Sylvester's law of inertia the numbers of positive and
+        negative eigenvalues when no pivot was perturbed.  A factorization with a perturbed
+        pivot is not to be solved with."""
+        try:
+            self._call(22, data)
+        except NotPositiveDefiniteError:  # an exactly singular diagonal block
+            return 0, 0, self.n
+        return tuple(int(v) for v in self.iparm[[21, 22, 13]])
 
     def factor(self, data):
         """Numerical factorization (phase 22) of the values ``data`` on the analysed pattern.
@@ -357,7 +395,7 @@ class _Pardiso:
 
     def solve(self, data, b):
         """Forward and back substitution (phase 33); ``b`` of shape (N,) or (N, k)."""
-        B = np.asfortranarray(b, dtype=float)  # PARDISO reads k right-hand sides column by column
+        B = np.asfortranarray(b, dtype=data.dtype)  # PARDISO reads k right-hand sides column by column
         return self._call(33, data, B)
 
     @property
@@ -639,12 +677,13 @@ class SparseCholesky:
         if order is not None:  # SuperLU in the given order: H permuted, no ordering of its own
             H = H[order][:, order]
         try:
-            lu = spla.splu(
-                H.tocsc(),
-                permc_spec="MMD_AT_PLUS_A" if order is None else "NATURAL",
-                diag_pivot_thresh=0.0,
-                options={"SymmetricMode": True},
-            )
+            with single_threaded_blas():
+                lu = spla.splu(
+                    H.tocsc(),
+                    permc_spec="MMD_AT_PLUS_A" if order is None else "NATURAL",
+                    diag_pivot_thresh=0.0,
+                    options={"SymmetricMode": True},
+                )
         except RuntimeError as exc:  # "Factor is exactly singular"
             raise NotPositiveDefiniteError(
                 f"sparse Cholesky (SuperLU) failed: {exc}; the matrix is singular"
@@ -749,9 +788,16 @@ class SparseCholesky:
             if not halved:
                 break
         bs = b * scale  # the residual's scale: norms without overflow
-        bnorm, rnorm = float(np.linalg.norm(bs)), float(np.linalg.norm(r))
+        bnorm, rnorm = _norm2(bs), _norm2(r)
         rel = rnorm / bnorm if bnorm else (np.inf if rnorm else 0.0)
         return x, SolveCheck(self.backend, float(omega), rel, steps)
+
+
+def _norm2(v):
+    """``||v||_2`` (Frobenius for a matrix) by a ufunc sum, not BLAS: ``np.linalg.norm`` calls a
+    multi-threaded ``dot`` that, beside another job on the same cores, took 5 ms per call on a
+    3 x 10^4 vector (measured)."""
+    return float(np.sqrt(np.sum(np.square(v))))
 
 
 class _Permuted:
@@ -866,6 +912,12 @@ def _backward_error(H, x, b):
         ratio = np.where(denom > 0, a / np.where(denom > 0, denom, 1.0), np.where(a > 0, np.inf, 0))
     ratio[~(np.isfinite(a) & np.isfinite(denom))] = np.inf
     return r, s, float(ratio.max()) if ratio.size else 0.0
+
+
+def _rows_key(rows):
+    """Rows of a graph as bytes: part of the key of a structural cache entry
+    (``PoseGraph._structural``), e.g. the fixed poses of an elimination ordering."""
+    return np.sort(np.asarray(rows, dtype=np.int64)).tobytes()
 
 
 def _check_ordering(ordering, N):
