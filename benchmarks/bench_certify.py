@@ -43,7 +43,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from run_all import _version, machine  # benchmarks/ is on sys.path when run as a script
+from _timing import package_version as _version  # benchmarks/ is on sys.path as a script
+from run_all import machine
 
 HERE = Path(__file__).resolve().parent
 PACKAGES = ("numpy", "scipy", "qdldl", "gtsam", "lagolib")

@@ -94,11 +94,16 @@ WHO = {
     "marg": ("lagolib", "gtsam"),
     "order": ("lagolib",),
     "gn_t2v": ("lagolib", "g2o"),
+    "lago_gn": ("lagolib",),
+    "certify": ("lagolib",),
 }
 MODULES = {"lagolib": "lagolib", "gtsam": "gtsam", "g2o": "g2opy"}
 #: targets of issue 15: ratio lagolib / peer at most ("own": GN iteration / its factorization;
 #: "gn_t2v": strictly below)
 TARGETS = {"lago": 0.5, "gn1": 0.5, "rss": 1.0, "own": 1.3, "marg": 1.0, "gn_t2v": 1.0}
+#: targets of issue 26: certify.solve / (LAGO + GN) at most, and its peak RSS / GTSAM GN's (at
+#: 1e5 poses and more)
+CERTIFY_TARGETS = {"time": 1.5, "rss": 1.2, "rss_from": 100_000}
 #: simulated poses per lattice point (:func:`extent_for`)
 POSES_PER_POINT = 2.5
 
@@ -187,6 +192,8 @@ def _load_lagolib_graph(files):
 
 
 def _lagolib_child(task, files, budget):
+    import warnings
+
     import numpy as np
 
     import lagolib
@@ -248,6 +255,32 @@ def _lagolib_child(task, files, budget):
         arrays["poses"] = res.poses
         if task == "gn":
             np.save(files["optimum"], res.poses)
+    elif task == "lago_gn":  # the plain pipeline: LAGO (default tree), then GN (t2v, pose 0 fixed)
+
+        def run(_):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", lagolib.RegularizationWarning)
+                x = lago(graph).poses
+            return None, lagolib.optimize(graph, x, method="gn")
+
+        best, walls, _, res, par = timed(run)
+        rec.update(iterations=res.iterations, native_chi2=res.chi2, converged=res.converged)
+        arrays["poses"] = res.poses
+    elif task == "certify":  # the same, certified: lagolib.certify.solve (issue 26)
+        from lagolib import certify
+
+        def run(_):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", lagolib.RegularizationWarning)
+                return None, certify.solve(graph)
+
+        best, walls, _, res, par = timed(run)
+        rec.update(
+            native_chi2=res.chi2, f=res.f, certified=bool(res.certified), escapes=res.escapes,
+            phases={k: v for k, v in res.timings.items() if k != "total"},
+            engine="pardiso" if linalg._auto_backend(4 * graph.n - 2) == "pardiso" else "superlu",
+        )  # fmt: skip
+        arrays["poses"] = res.poses
     elif task == "marg":
         x = np.load(files["optimum"])
 
@@ -619,6 +652,52 @@ class Problem:
         return float(lagolib.chi2(self.graph, self.rows_of(rec), error=error))
 
 
+def certify_section(rows, sizes, results):
+    """Issue 26's table: ``certify.solve`` against lagolib's LAGO + GN, and its peak RSS
+    against GTSAM's GN (from the same LAGO start on the simulated rows)."""
+    CT = CERTIFY_TARGETS
+    L = [
+        "",
+        "## certify.solve against the plain pipeline (issue 26)",
+        "",
+        "`lagolib.certify.solve(graph)` (LAGO → GN → chordal polish → certificate [→ escape] → "
+        "GN) against `optimize(graph, lago(graph).poses)` (LAGO with its default tree, then GN: "
+        "t2v, first pose fixed) in the same run; peak RSS (`ru_maxrss`, MiB) of each process "
+        "against GTSAM's GN (the `gn` task above). Targets: time ratio ≤ "
+        f"{CT['time']}; RSS ratio ≤ {CT['rss']} from {CT['rss_from']:,} poses. The "
+        "certificate's factorization: `pardiso` (MKL, complex Hermitian, from 5 × 10^4 real "
+        "rows) or `superlu` (SciPy, complex).",
+        "",
+        "| row | poses | certify.solve | LAGO + GN | ratio | certified | f | certificate "
+        "engine | LAGO / GN / polish / certificate / escape | RSS certify.solve | RSS LAGO + GN "
+        "| RSS GTSAM GN | RSS ratio |",
+        "|---|--:|--:|--:|--:|:-:|--:|:-:|--:|--:|--:|--:|--:|",
+    ]
+    for r in rows:
+        rec = results.get((r, "lagolib", "certify"))
+        if not rec or "error" in rec:
+            continue
+        n = sizes[r][0]
+        a, b = rec.get("best"), _get(results, r, "lagolib", "lago_gn")
+        ph = rec.get("phases", {})
+        split = " / ".join(
+            fmt_s(ph.get(k)) for k in ("lago", "gauss_newton", "refine", "certify", "escape")
+        )
+        ra = rec.get("rss_peak")
+        rb = _get(results, r, "lagolib", "lago_gn", "rss_peak")
+        rg = _get(results, r, "gtsam", "gn", "rss_peak")
+        rss_target = CT["rss"] if n >= CT["rss_from"] else None
+        L.append(
+            "| " + " | ".join([
+                r, f"{n:,}", fmt_s(a), fmt_s(b), fmt_ratio(_ratio(a, b), CT["time"]),
+                "yes" if rec.get("certified") else "no", f"{rec.get('f', float('nan')):.10g}",
+                rec.get("engine", "—"), split, fmt_mib(ra, None), fmt_mib(rb, None),
+                fmt_mib(rg, None), fmt_ratio(_ratio(ra, rg), rss_target),
+            ]) + " |"
+        )  # fmt: skip
+    return L
+
+
 def growth(sizes, times):
     """Slope of log(time) against log(poses) by least squares, or None below 2 points."""
     import numpy as np
@@ -644,6 +723,12 @@ def report(args, rows, sizes, results, checks, info, started, elapsed, load):
         f"- Machine: {info['cpu']}, nproc {info['nproc']}, {info['ram']} RAM; {info['os']}; "
         f"Python {info['python']}",
         "- Versions: " + ", ".join(f"{p} {package_version(p)}" for p in PACKAGES),
+        "- Install: "
+        + (
+            "MKL hidden (`LAGOLIB_MKL_RT=off`): what `pip install lagolib` gives"
+            if os.environ.get("LAGOLIB_MKL_RT", "").lower() == "off"
+            else "MKL PARDISO available to lagolib (`pip install \"lagolib[fast]\"`)"
+        ),
         f"- Load average (1/5/15 min): {'/'.join(f'{x:.2f}' for x in load[0])} at the start, "
         f"{'/'.join(f'{x:.2f}' for x in load[1])} at the end (other jobs on the same cores change "
         "absolute times; compare the ratios of one run)",
@@ -705,6 +790,8 @@ def report(args, rows, sizes, results, checks, info, started, elapsed, load):
             "bound (its first poses cost more than the later ones, whose shortcuts in the "
             "Bayes tree are cached, so no extrapolation is given): " + ", ".join(partial) + ".",
         ]
+    if any(results.get((r, "lagolib", "certify")) for r in rows):
+        L += certify_section(rows, sizes, results)
     L += [
         "",
         "## One warm Gauss–Newton iteration (the 2nd), split",

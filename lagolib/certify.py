@@ -529,8 +529,8 @@ class ChordalSystem(LinearSystem):
     pattern, assembly and update are :class:`lagolib.gauss_newton.LinearSystem`'s.
     """
 
-    def __init__(self, problem, *, fixed=()):
-        super().__init__(problem.graph, fixed=fixed)
+    def __init__(self, problem, *, fixed=(), like=None):
+        super().__init__(problem.graph, fixed=fixed, like=like)
         self.problem = problem
         w = np.stack([problem.tau, problem.tau, problem.kappa, problem.kappa], axis=1)
         self._W = w[:, :, None] * np.eye(4)  # (m, 4, 4)
@@ -717,12 +717,14 @@ def _refine(problem, initial, *, method, max_iterations, tol, step_tol, verbose,
     x = as_graph_poses(p.graph, initial, "initial", "initial guess")
     fixed = [int(p.graph.ids[0])] if p.n else []
     unit, scale = p._unit  # weights scaled to order 1: the damping's limits are absolute
-    if method == "gn":
-        system, control = ChordalSystem(unit, fixed=fixed), _GaussNewtonSteps(10)
-    else:
-        system, control = ChordalNewtonSystem(unit, fixed=fixed), _LevenbergMarquardtDamping(1e-8)
     if solver is None:
         solver = _LinearSolver("cholesky", "auto")
+    like = solver.system  # Gauss-Newton's, in solve(): the same pattern
+    if method == "gn":
+        system, control = ChordalSystem(unit, fixed=fixed, like=like), _GaussNewtonSteps(10)
+    else:
+        system = ChordalNewtonSystem(unit, fixed=fixed, like=like)
+        control = _LevenbergMarquardtDamping(1e-8)
     solve_ = solver.bind(system)
     trace = _Trace(method, verbose)
     x, f, stop = _minimize(system, x, control, solve_, trace, max_iterations, tol, step_tol, None)

@@ -490,6 +490,13 @@ def reduce_system(graph, H, b, fixed):
 _CHUNK = 2**15
 
 
+#: What :class:`LinearSystem` computes from the structure alone (shared with ``like``).
+_STRUCTURE = (
+    "_blocks", "nnz", "_indptr", "_indices", "_slot_e", "_slot_p", "_diag_slot", "_rows_b_e",
+    "_rows_b_p",
+)  # fmt: skip
+
+
 class LinearSystem:
     """``H`` and ``b`` for all constraints at once, in a sparsity pattern computed once.
 
@@ -509,6 +516,11 @@ class LinearSystem:
         Variables").
     prior : Prior or sequence of Prior, optional
     error : {"t2v", "log"}
+    like : LinearSystem, optional
+        A system of the same graph (or a ``with_poses`` copy of it) with the same fixed poses
+        and priors: its pattern and scatter indices are reused instead of built again, and its
+        ``H`` shares their arrays — so a factorization's symbolic analysis recognizes the pattern
+        at once.  Ignored when it does not match.
 
     Attributes
     ----------
@@ -521,7 +533,7 @@ class LinearSystem:
         Stored entries of ``H`` (both triangles).
     """
 
-    def __init__(self, graph, *, fixed=(), prior=None, error="t2v"):
+    def __init__(self, graph, *, fixed=(), prior=None, error="t2v", like=None):
         check_graph(graph, "LinearSystem")
         check_choice(error, "error", "LinearSystem", ERRORS)
         self.graph, self.error = graph, error
@@ -541,6 +553,10 @@ class LinearSystem:
         self._prior_idx = vertex_rows(graph, [p.vertex for p in self.priors], "prior")
         self._prior_mean = np.array([p.mean for p in self.priors], dtype=float).reshape(-1, 3)
         self._prior_info = np.array([p.information for p in self.priors], float).reshape(-1, 3, 3)
+        if self._same_structure(like):
+            for name in _STRUCTURE:
+                setattr(self, name, getattr(like, name))
+            return
         e = red[graph.edges]  # block of each edge's poses, -1 where fixed; (m, 2)
         pblk = red[self._prior_idx]
         self._build_pattern(e, pblk)
@@ -549,6 +565,17 @@ class LinearSystem:
         rows_b = np.where(e[:, :, None] >= 0, 3 * e[:, :, None] + comp, N)  # (m, 2, 3)
         self._rows_b_e = np.ascontiguousarray(rows_b.reshape(-1, 6).T)  # entry-major, (6, m)
         self._rows_b_p = np.where(pblk[:, None] >= 0, 3 * pblk[:, None] + comp, N)  # (p, 3)
+
+    def _same_structure(self, other):
+        """Whether ``other`` (a LinearSystem or None) has this system's pattern: the same
+        edges (the same arrays: one graph or its ``with_poses`` copies), fixed poses and
+        priors' poses."""
+        return (
+            isinstance(other, LinearSystem)
+            and other.graph._edges is self.graph._edges
+            and np.array_equal(other.fixed, self.fixed)
+            and np.array_equal(other._prior_idx, self._prior_idx)
+        )
 
     def _build_pattern(self, e, pblk):
         """The CSR pattern of ``H`` from its 3x3 blocks, and where every Jacobian product goes.
@@ -1074,6 +1101,7 @@ class _LinearSolver:
         self.kind, self.backend = kind, backend
         self._ordering, self._auto_rows = ordering, auto_rows
         self.factor = None
+        self.system = None  # the last system bound: later ones may share its pattern
         self.iterations = []  # PCG iterations per solve
 
     def bind(self, system):
@@ -1085,6 +1113,7 @@ class _LinearSolver:
         if self.factor is None or getattr(self, "_key", None) != key:
             self.factor, self._key = None, key
             self._ordering, self._auto_rows = system.ordering, system.core_rows
+        self.system = system
         self.iterations = []
         return self
 
@@ -1317,8 +1346,9 @@ def _optimize(
     callback = check_callback(callback, "callback", where)
     fixed, priors = resolve_gauge(graph, fixed, prior, where=where)
     x = as_graph_poses(graph, initial, "initial", "initial guess")
+    like = None if solver is None else solver.system  # a system to share the pattern with
     if robust is None:
-        system = LinearSystem(graph, fixed=fixed, prior=priors, error=error)
+        system = LinearSystem(graph, fixed=fixed, prior=priors, error=error, like=like)
     else:
         kern = as_kernel(robust, where=f"{where}: robust")
         mask = robust_edge_mask(graph, robust_edges, where)

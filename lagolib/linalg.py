@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -60,6 +61,7 @@ __all__ = [
     "pcg",
     "PCGResult",
     "PARDISO_MIN_SIZE",
+    "PARDISO_MIN_MFLOP",
     "PIVOT_TOL",
     "fill_reducing_ordering",
     "elimination_ordering",
@@ -79,6 +81,15 @@ BACKENDS = ("qdldl", "pardiso", "scipy")
 #: (at most 3 x 10^4 rows) stay on the readable, deterministic qdldl.  On chains qdldl was
 #: 3-4x faster at every size.
 PARDISO_MIN_SIZE = 50_000
+
+#: ``backend="auto"`` also moves a smaller system to PARDISO (when installed) from its second
+#: factorization on, when qdldl's first one took at least this many Mflop (``sum_j c_j^2`` over
+#: the columns of ``L``): the row count misses the fill of long random closures.  Measured (one
+#: refactorization, qdldl / PARDISO, 2 cores): a 1.7 x 10^4-pose Manhattan world, 351 Mflop,
+#: 0.14 / 0.13 s; 3 x 10^4 poses, 1178 Mflop, 0.43 / 0.19 s; M3500 with 300 random wrong
+#: closures, 230 Mflop, 0.13 / 0.10 s; with 1000, 1973 Mflop, 1.15 / 0.20 s — where IRLS ran
+#: 62.6 s on qdldl and 6.8 s on PARDISO (benchmarks/ROBUST.md).
+PARDISO_MIN_MFLOP = 500.0
 
 #: Every solve is checked by its componentwise (Oettli–Prager) backward error
 #: ``omega = max_i |b - H x|_i / (|H| |x| + |b|)_i`` — one product with ``H`` and one with ``|H|``
@@ -418,7 +429,9 @@ class SparseCholesky:
         Symmetric positive definite; both triangles stored (only the upper one is read).
     backend : {"auto", "qdldl", "pardiso", "scipy"}
         ``"auto"``: PARDISO from :data:`PARDISO_MIN_SIZE` rows (``auto_rows``) up when MKL is
-        installed (``pip install "lagolib[fast]"``), qdldl otherwise.
+        installed (``pip install "lagolib[fast]"``), qdldl otherwise — and PARDISO from the
+        second factorization on when qdldl's first one cost :data:`PARDISO_MIN_MFLOP` or more
+        (fill from long loop closures).
     check : bool
         Check that ``H`` (and every later one given to :meth:`refactor`) is finite and
         symmetric — ``O(nnz)``; lagolib's optimizer, which builds ``H`` symmetric, skips it.
@@ -443,6 +456,10 @@ class SparseCholesky:
     nnz_L : int
         Entries of the factor ``L``, diagonal included: the fill its ordering leaves (0 for
         SuperLU, which stores ``L`` and ``U`` together).
+    mflops : float or None
+        qdldl's cost of one factorization in Mflop (``sum_j c_j^2``, ``c_j`` the entries of
+        column ``j`` of ``L``), from its first factorization of a pattern; None on the other
+        backends.
     fallback : str or None
         Why PARDISO was replaced by qdldl (its factorization broke down, or its solution failed
         the check after refinement), or None.
@@ -486,6 +503,9 @@ class SparseCholesky:
         _check_square(H, "SparseCholesky", check=False)
         if auto_rows is not None and not callable(auto_rows):
             check_int(auto_rows, "auto_rows", "SparseCholesky", minimum=0)
+        self._auto = backend == "auto"  # may move to PARDISO after a costly first factor
+        self._next_backend = None
+        self.mflops = None
         if backend == "auto":
             backend = _auto_backend(H.shape[0], auto_rows)
         elif backend == "pardiso" and _mkl_runtime() is None:
@@ -527,6 +547,10 @@ class SparseCholesky:
         H = H if H.format == "csr" and H.dtype == np.float64 else sp.csr_matrix(H, dtype=float)
         if not H.has_sorted_indices:
             H = H.sorted_indices()
+        if self._next_backend is not None:  # qdldl's first factorization was costly
+            self.backend, self._next_backend = self._next_backend, None
+            self._solver = self._pattern = None
+            self.ordering = self._given_ordering()
         if self.backend == "scipy":
             self._factor_scipy(H)
         else:
@@ -597,6 +621,7 @@ class SparseCholesky:
         PARDISO stays the backend.
         """
         self.backend, self._solver, self._pattern = "qdldl", None, None
+        self._auto, self._next_backend = False, None  # never back to PARDISO
         try:
             self._factor_triangle(H)
         except NotPositiveDefiniteError:  # qdldl agrees: H is not positive definite
@@ -645,6 +670,16 @@ class SparseCholesky:
         L, d, perm = self._solver.factors()
         self.nnz_L = int(L.nnz) + d.size
         _check_pivots(d, hdiag[perm], perm, "qdldl")
+        if not same:  # the factorization's cost, sum_j c_j^2 over L's columns
+            counts = np.diff(L.indptr).astype(np.float64)
+            self.mflops = float(np.sum(counts * counts)) / 1e6
+            if (
+                self._auto
+                and self.mflops >= PARDISO_MIN_MFLOP
+                and self.fallback is None
+                and _mkl_runtime() is not None
+            ):
+                self._next_backend = "pardiso"
 
     def factors(self):
         """``(L, d, perm)`` with ``H = P (I + L) diag(d) (I + L)^T P^T``, ``P[perm[k], k] = 1``.
@@ -848,15 +883,35 @@ class _Upper:
             d = U.diagonal()
         self.U, self.d = U, d  # or the triangle a backend was given (CSR or CSC) and its diagonal
 
+    @cached_property
+    def _T(self):
+        """``U^T`` (the same arrays, read the other way), built once: every solve's check
+        multiplies with it twice or more."""
+        return self.U.T
+
+    @cached_property
+    def _abs(self):
+        """``(|U|, |U|^T, |d|)`` when ``U`` is small enough to hold ``|U|`` whole (at most
+        ``_ABS_CHUNK`` entries), else None (:func:`_abs_dot` then works in chunks)."""
+        if self.U.nnz > _ABS_CHUNK:
+            return None
+        A = self.U.copy()
+        np.abs(A.data, out=A.data)
+        return A, A.T, np.abs(self.d)
+
     def matvec(self, x):
         d = self.d if x.ndim == 1 else self.d[:, None]
-        return self.U @ x + self.U.T @ x - d * x
+        return self.U @ x + self._T @ x - d * x
 
     def absvec(self, v):
+        held = self._abs
+        if held is not None:
+            A, AT, ad = held
+            return A @ v + AT @ v - (ad if v.ndim == 1 else ad[:, None]) * v
         d = np.abs(self.d) if v.ndim == 1 else np.abs(self.d)[:, None]
         csc = self.U.format == "csc"  # U^T is then CSR, and the other way round
         return (
-            _abs_dot(self.U, v, by_columns=csc) + _abs_dot(self.U.T, v, by_columns=not csc) - d * v
+            _abs_dot(self.U, v, by_columns=csc) + _abs_dot(self._T, v, by_columns=not csc) - d * v
         )
 
     def matrix(self):
@@ -866,7 +921,11 @@ class _Upper:
         return H
 
 
-def _abs_dot(M, v, *, by_columns=False, chunk=1 << 22):
+#: Stored entries up to which a solve's check holds ``|U|`` whole (above: in chunks).
+_ABS_CHUNK = 1 << 22
+
+
+def _abs_dot(M, v, *, by_columns=False, chunk=_ABS_CHUNK):
     """``|M| @ v`` without holding ``|M|`` whole: ``M`` CSR (rows in chunks) or CSC
     (``by_columns``), chunks of about ``chunk`` stored entries, so the memory is bounded."""
     if M.nnz <= chunk:

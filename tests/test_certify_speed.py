@@ -185,3 +185,46 @@ def test_closed_form_newton_system_equals_the_product_of_the_complex_matrices():
     gn = lagolib.gauss_newton.LinearSystem(g, fixed=[int(g.ids[0])])
     Hgn = gn.assemble(poses)[0]
     assert np.array_equal(H.indptr, Hgn.indptr) and np.array_equal(H.indices, Hgn.indices)
+
+
+# ----------------------------------------------------------------------------- backend="auto"
+def _heavy_system(seed=4):
+    """H of a 600-pose world with 150 random long closures (fill far above its row count's)."""
+    g = simulate.manhattan_world(n_poses=600, extent=15, rng=seed).graph
+    g = simulate.add_outliers(g, 150, policy="random", rng=seed).graph
+    system = lagolib.gauss_newton.LinearSystem(g, fixed=[int(g.ids[0])])
+    return system, system.assemble(g.poses)
+
+
+@pytest.mark.skipif(len(ENGINES) < 2, reason="MKL is not installed")
+def test_auto_moves_to_pardiso_after_a_costly_first_factorization(monkeypatch):
+    from lagolib import linalg
+
+    system, (H, b, _) = _heavy_system()
+    reference = linalg.SparseCholesky(H, "qdldl", check=False)
+    monkeypatch.setattr(linalg, "PARDISO_MIN_MFLOP", 0.1 * reference.mflops)
+    factor = linalg.SparseCholesky(H, "auto", check=False, ordering=system.ordering)
+    assert factor.backend == "qdldl" and factor.mflops == pytest.approx(reference.mflops)
+    x1 = factor.solve(-b)
+    factor.refactor(H)  # the second factorization: PARDISO, in the system's ordering
+    assert factor.backend == "pardiso" and factor.fallback is None
+    x2 = factor.solve(-b)
+    np.testing.assert_allclose(x2, x1, rtol=0, atol=1e-9 * np.abs(x1).max())
+    assert factor.last_check.backward_error <= linalg.BACKWARD_ERROR_TOL
+    # below the threshold, or with a backend asked for by name, qdldl stays
+    monkeypatch.setattr(linalg, "PARDISO_MIN_MFLOP", 10.0 * reference.mflops)
+    for backend in ("auto", "qdldl"):
+        f = linalg.SparseCholesky(H, backend, check=False)
+        f.refactor(H)
+        assert f.backend == "qdldl"
+
+
+def test_auto_stays_on_qdldl_without_mkl(monkeypatch):
+    from lagolib import linalg
+
+    system, (H, b, _) = _heavy_system()
+    monkeypatch.setattr(linalg, "PARDISO_MIN_MFLOP", 0.0)
+    monkeypatch.setattr(linalg, "_mkl_runtime", lambda: None)
+    f = linalg.SparseCholesky(H, "auto", check=False)
+    f.refactor(H)
+    assert f.backend == "qdldl" and f.mflops > 0
