@@ -3,7 +3,8 @@
     LAGOLIB_DATA=/path/to/mirror python benchmarks/bench_certify.py [--quick] [--runs 5]
         [--out benchmarks/CERTIFY.md]
 
-Four parts, each measured in fresh subprocesses (this script with ``--child``):
+Five parts, each measured in fresh subprocesses (this script with ``--child``; ``--parts``
+picks some):
 
 1. **Every graph of the mirror** that :mod:`lagolib.datasets` knows: the default pipeline
    ``lagolib.certify.solve(graph)`` (χ², chordal ``f``, the two smallest eigenvalues of the reduced
@@ -18,6 +19,8 @@ Four parts, each measured in fresh subprocesses (this script with ``--child``):
    certifies, how often LAGO + GN alone was already certified, escapes, gaps, and how often GTSAM
    ends above the pipeline.
 4. **SE-Sync's published optima** (IJRR 2019, Table 1) from the SE-Sync-weighted graphs.
+5. **Per-call fixed costs** (issue 26): ``certify.solve`` on a 200-pose world against GTSAM's
+   ``lago.initialize`` + LM, warm, and the SciPy sparse matrices one call constructs.
 
 Every child also checks the certificate against the other methods' points (a certified ``f``
 must not be above another local minimum's chordal cost; every lower bound must be below every
@@ -494,12 +497,55 @@ def child_sesync(spec):
     }
 
 
+def child_fixed(spec):
+    """Per-call fixed costs: ``certify.solve`` on a small world against GTSAM's
+    ``lago.initialize`` + LM on the same graph, warm, median of ``spec["calls"]`` calls; and how
+    many SciPy compressed sparse matrices one ``certify.solve`` constructs."""
+    import warnings
+
+    import gtsam
+    import scipy.sparse._compressed as compressed
+
+    from lagolib import certify, simulate
+
+    warnings.simplefilter("ignore")
+    g = simulate.manhattan_world(n_poses=spec["n"], extent=spec["extent"], rng=0).graph
+    fg, lago_fg, _ = gtsam_graphs(gtsam, g, None)
+    for _ in range(3):  # warm: imports, caches
+        certify.solve(g)
+        gtsam_pipeline(gtsam, g, fg, lago_fg)
+    ours, peer = [], []
+    for _ in range(spec["calls"]):  # interleaved: both see the same load
+        t = time.perf_counter()
+        res = certify.solve(g)
+        ours.append(time.perf_counter() - t)
+        peer.append(gtsam_pipeline(gtsam, g, fg, lago_fg)[1])
+    count, init = [0], compressed._cs_matrix.__init__
+
+    def counted(self, *args, **kwargs):
+        count[0] += 1
+        return init(self, *args, **kwargs)
+
+    compressed._cs_matrix.__init__ = counted
+    try:
+        certify.solve(g)
+    finally:
+        compressed._cs_matrix.__init__ = init
+    return {
+        "n": g.n, "m": g.m, "certified": bool(res.certified),
+        "stages": {k: v for k, v in res.timings.items()},
+        "ours": statistics.median(ours), "ours_best": min(ours),
+        "peer": statistics.median(peer), "peer_best": min(peer), "sparse": count[0],
+    }  # fmt: skip
+
+
 CHILDREN = {
     "table": child_table,
     "cost": child_cost,
     "rss": child_rss,
     "sweep": child_sweep,
     "sesync": child_sesync,
+    "fixed": child_fixed,
 }
 
 
@@ -864,6 +910,36 @@ def report_sweep(sweep, seeds):
     return lines
 
 
+def report_fixed(fixed):
+    """Part 5: per-call fixed costs (issue 26: within 2x GTSAM's LAGO + LM at 200 poses)."""
+    lines = [
+        "## 5. Per-call fixed costs: a 200-pose world",
+        "",
+        "`certify.solve(graph)` against GTSAM's `lago.initialize` + `LevenbergMarquardtOptimizer` "
+        "(as in part 1) on `simulate.manhattan_world(n_poses=200, extent=9, rng=0)`, warm, "
+        "interleaved calls in one process (median and best of each); target: ratio ≤ 2. "
+        "\"sparse\" counts the SciPy compressed sparse matrices one call constructs.",
+        "",
+        "| poses | edges | certify.solve median (best) | GTSAM LAGO + LM median (best) | ratio "
+        "| certified | LAGO / GN / polish / certificate ms | sparse |",
+        "|--:|--:|--:|--:|--:|:-:|--:|--:|",
+    ]
+    for r in fixed:
+        if "error" in r:
+            lines.append(f"| — | — | failed: {r['error']} | | | | | |")
+            continue
+        st = r["stages"]
+        split = " / ".join(
+            _ms(st.get(k, 0.0)) for k in ("lago", "gauss_newton", "refine", "certify")
+        )
+        lines.append(
+            f"| {r['n']} | {r['m']} | {_ms(r['ours'])} ms ({_ms(r['ours_best'])}) | "
+            f"{_ms(r['peer'])} ms ({_ms(r['peer_best'])}) | {r['ours'] / r['peer']:.2f} | "
+            f"{'yes' if r['certified'] else 'no'} | {split} | {r['sparse']} |"
+        )
+    return lines
+
+
 def report_sesync(sesync):
     lines = [
         "## 4. SE-Sync's published optima",
@@ -905,7 +981,7 @@ def write_report(args, parts, started, elapsed, loads):
         "across runs)",
         "",
     ]
-    table, cost, sweep, sesync = parts
+    table, cost, sweep, sesync, fixed = parts
     if table:
         lines += report_table(table, args.runs_table) + [""]
     if cost:
@@ -914,6 +990,8 @@ def write_report(args, parts, started, elapsed, loads):
         lines += report_sweep(sweep, args.seeds) + [""]
     if sesync:
         lines += report_sesync(sesync) + [""]
+    if fixed:
+        lines += report_fixed(fixed) + [""]
     anomalies = []
     for r in (table or {}).values():
         anomalies += r.get("anomalies", [])
@@ -940,6 +1018,8 @@ def main(argv=None):
     ap.add_argument("--out", default=None, help="report file (default benchmarks/CERTIFY.md; "
                     "--quick: print it)")  # fmt: skip
     ap.add_argument("--sizes", type=int, nargs="*", default=None, help="N of the sweep (200 500)")
+    ap.add_argument("--parts", type=int, nargs="*", default=[1, 2, 3, 4, 5],
+                    help="the parts to run (default all: 1 2 3 4 5)")  # fmt: skip
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
@@ -967,24 +1047,36 @@ def main(argv=None):
         args.seeds = list(range(SEEDS))
         sizes = args.sizes or [200, 500]
         sigmas = SIGMAS
-    print(f"1. pipeline on {len(graphs)} graphs ({args.runs_table} processes each)", flush=True)
+    parts = set(args.parts)
+    table = cost = sweep = sesync = fixed = None
     with tempfile.TemporaryDirectory() as tmp:
-        table = part_table(graphs, args.runs_table, tmp)
-        print(f"2. certificate cost on {', '.join(cost_names)} ({args.runs} processes)", flush=True)
-        cost = part_cost(cost_names, args.runs, tmp)
-    for name in cost:
+        if 1 in parts:
+            print(f"1. pipeline on {len(graphs)} graphs ({args.runs_table} processes each)",
+                  flush=True)  # fmt: skip
+            table = part_table(graphs, args.runs_table, tmp)
+        if 2 in parts:
+            print(f"2. certificate cost on {', '.join(cost_names)} ({args.runs} processes)",
+                  flush=True)  # fmt: skip
+            cost = part_cost(cost_names, args.runs, tmp)
+    for name in cost or {}:
         info = datasets.info(name)
-        r = table.get(name, {})
+        r = (table or {}).get(name, {})
         cost[name]["nm"] = (r.get("n", info.vertices), r.get("m", info.edges))
-    print(f"3. noise sweep, N = {sizes}, {len(sigmas)} σ_θ × {len(args.seeds)} seeds", flush=True)
-    t = time.perf_counter()
-    sweep = part_sweep(sizes, sigmas, args.seeds)
-    print(f"   ({time.perf_counter() - t:.0f} s)", flush=True)
-    print("4. SE-Sync's optima", flush=True)
-    sesync = part_sesync(sesync_names)
+    if 3 in parts:
+        print(f"3. noise sweep, N = {sizes}, {len(sigmas)} σ_θ × {len(args.seeds)} seeds",
+              flush=True)  # fmt: skip
+        t = time.perf_counter()
+        sweep = part_sweep(sizes, sigmas, args.seeds)
+        print(f"   ({time.perf_counter() - t:.0f} s)", flush=True)
+    if 4 in parts:
+        print("4. SE-Sync's optima", flush=True)
+        sesync = part_sesync(sesync_names)
+    if 5 in parts:
+        print("5. per-call fixed costs, 200 poses", flush=True)
+        fixed = [run_child({"task": "fixed", "n": 200, "extent": 9, "calls": 30})]
     elapsed = time.perf_counter() - t_start
     loads = ["/".join(f"{x:.2f}" for x in load) for load in (load_start, os.getloadavg())]
-    report = write_report(args, (table, cost, sweep, sesync), started, elapsed, loads)
+    report = write_report(args, (table, cost, sweep, sesync, fixed), started, elapsed, loads)
     out = args.out or (None if args.quick else str(HERE / "CERTIFY.md"))
     if out:
         Path(out).write_text(report)

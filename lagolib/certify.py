@@ -225,6 +225,13 @@ class ChordalProblem:
             unit.__dict__["M"] = self.M / s
         return unit, s
 
+    def _drop_matrices(self):
+        """Forget the cached matrices (``M`` and the forms built from it); they are built
+        again when needed."""
+        for name in ("M", "_unit", "_M_real", "_real_form", "_hermitian_form",
+                     "_translation_factor", "_f_scale"):  # fmt: skip
+            self.__dict__.pop(name, None)
+
     @cached_property
     def M(self):
         """The data matrix, :func:`data_matrix` (computed once)."""
@@ -914,7 +921,8 @@ class _ShiftedFactor:
             if not (no_swap and np.all(lu.U.diagonal().real > 0)):
                 return False
             self._lu = lu
-        self._A, self._abs = A, abs(A)
+        self._A = A
+        self._abs = sp.csc_matrix((np.abs(data), A.indices, A.indptr), shape=A.shape)  # |A|
         # the verdict rests on the factors: one solve must reproduce its right-hand side
         probe = np.random.default_rng(0).standard_normal((N, 2)) @ np.array([1.0, 1j])
         self._solve_ordered(probe)
@@ -1806,6 +1814,8 @@ def solve(
     )
     ref = _polish(p, gn.poses, shared)
     record("chordal polish", "refine", ref.timings["total"], f=ref.chi2, iterations=ref.iterations)
+    if shared.factor is not None:  # the certificate factors another matrix meanwhile
+        shared.factor.release()
     cert = certified_stage("certificate", ref.poses)
     best, best_cert, bound = ref.poses, cert, max(cert.lower_bound, 0.0)
     X, X_cert, r = to_complex(ref.poses)[:, None], cert, 1
@@ -1897,7 +1907,9 @@ def solve(
             break
         bound = max(bound, X_cert.lower_bound)
     # Gauss-Newton on chi2 from the chordal point that was certified: the polish (and any
-    # escape) may have left the basin of the first Gauss-Newton result
+    # escape) may have left the basin of the first Gauss-Newton result; the certificate's
+    # matrices are not needed by it (memory: they would sit beside its factor)
+    p._drop_matrices()
     final = _gauss_newton(graph, best, shared)
     record(
         "Gauss-Newton",

@@ -409,6 +409,12 @@ class _Pardiso:
         B = np.asfortranarray(b, dtype=data.dtype)  # PARDISO reads k right-hand sides column by column
         return self._call(33, data, B)
 
+    def release(self):
+        """Free the numerical factor (phase 0); the ordering and symbolic analysis stay."""
+        i = np.zeros(1, dtype=np.int32)
+        d = np.zeros(1, dtype=np.complex128 if self.mtype == -4 else np.float64)
+        _pardiso_call(self._lib, self.pt, 0, self.n, d, i, i, i, self.iparm, d, d, self.mtype)
+
     @property
     def nnz_L(self):
         """Entries of the factor ``L`` (diagonal included), from PARDISO's report."""
@@ -563,6 +569,18 @@ class SparseCholesky:
             else _Upper(U=self._triangle[0], d=self._triangle[1])
         )
         self._failed = None
+        return self
+
+    def release(self):
+        """Free the numerical factor and keep the symbolic analysis, when the backend keeps
+        them apart (PARDISO): memory for work between two factorizations (lagolib.certify.solve
+        frees Gauss–Newton's factor while its certificate factors another matrix).  The next
+        :meth:`refactor` factors again; until then :meth:`solve` raises.  On qdldl and SuperLU,
+        whose analysis lives in their factor, nothing is freed."""
+        if self.backend == "pardiso" and self._solver is not None and self._failed is None:
+            self._solver.release()
+            self._residual = self._triangle = self._data = None
+            self._failed = "its factor was released (release())"
         return self
 
     def _given_ordering(self):
@@ -893,10 +911,10 @@ class _Upper:
     def _abs(self):
         """``(|U|, |U|^T, |d|)`` when ``U`` is small enough to hold ``|U|`` whole (at most
         ``_ABS_CHUNK`` entries), else None (:func:`_abs_dot` then works in chunks)."""
-        if self.U.nnz > _ABS_CHUNK:
+        U = self.U
+        if U.nnz > _ABS_CHUNK:
             return None
-        A = self.U.copy()
-        np.abs(A.data, out=A.data)
+        A = type(U)((np.abs(U.data), U.indices, U.indptr), shape=U.shape)  # U's index arrays
         return A, A.T, np.abs(self.d)
 
     def matvec(self, x):

@@ -228,3 +228,21 @@ def test_auto_stays_on_qdldl_without_mkl(monkeypatch):
     f = linalg.SparseCholesky(H, "auto", check=False)
     f.refactor(H)
     assert f.backend == "qdldl" and f.mflops > 0
+
+
+@pytest.mark.skipif(len(ENGINES) < 2, reason="MKL is not installed")
+def test_a_released_factor_cannot_be_used_and_refactors_as_before():
+    from lagolib import linalg
+    from lagolib.errors import NotPositiveDefiniteError
+
+    system, (H, b, _) = _heavy_system(5)
+    f = linalg.SparseCholesky(H, "pardiso", check=False, ordering=system.ordering)
+    x = f.solve(-b)
+    f.release()
+    with pytest.raises(NotPositiveDefiniteError, match="released"):
+        f.solve(-b)
+    f.refactor(H)  # the analysis was kept: a numerical factorization only
+    np.testing.assert_allclose(f.solve(-b), x, rtol=0, atol=1e-12 * np.abs(x).max())
+    q = linalg.SparseCholesky(H, "qdldl", check=False)
+    q.release()  # nothing to free apart: the factor stays usable
+    np.testing.assert_allclose(q.solve(-b), x, rtol=0, atol=1e-9 * np.abs(x).max())
