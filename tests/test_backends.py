@@ -23,7 +23,11 @@ from lagolib.uncertainty import information_matrix, marginal_covariances, relati
 
 HAVE_PARDISO = "pardiso" in linalg.available_backends()
 needs_pardiso = pytest.mark.skipif(not HAVE_PARDISO, reason="MKL is not installed")
-FACTORING = ["qdldl", "scipy"] + (["pardiso"] if HAVE_PARDISO else [])
+FACTORING = (
+    ["qdldl", "scipy"]
+    + (["pardiso"] if HAVE_PARDISO else [])
+    + (["cholmod"] if linalg._have_cholmod() else [])
+)
 
 
 def rotated_information(m, rng):
@@ -58,7 +62,8 @@ def test_available_backends_and_auto():
     H = sp.identity(5, format="csr")
     assert linalg.SparseCholesky(H).backend == "qdldl"  # small: the teaching default
     big = sp.identity(linalg.PARDISO_MIN_SIZE, format="csr")
-    assert linalg.SparseCholesky(big).backend == ("pardiso" if HAVE_PARDISO else "qdldl")
+    fast = "cholmod" if linalg._have_cholmod() else "qdldl"
+    assert linalg.SparseCholesky(big).backend == ("pardiso" if HAVE_PARDISO else fast)
 
 
 @pytest.mark.parametrize("backend", FACTORING)
@@ -80,7 +85,7 @@ def test_backends_agree_on_a_gauss_newton_system(world, backend):
     np.testing.assert_allclose(
         F.refactor(H3).solve(b2), np.linalg.solve(H3.toarray(), b2), rtol=1e-8, atol=1e-10
     )
-    if backend != "scipy":
+    if backend not in ("scipy", "cholmod"):  # (neither reports its factor's size)
         assert F.nnz_L >= H.shape[0] + (sp.triu(H, 1).nnz)  # L holds at least H's pattern
 
 
@@ -127,7 +132,8 @@ def test_pardiso_unavailable_is_an_option_error_that_says_how_to_install(monkeyp
     monkeypatch.setattr(linalg, "_MKL", {"lib": None, "why": "MKL is not installed (test)"})
     assert "pardiso" not in linalg.available_backends()
     big = sp.identity(linalg.PARDISO_MIN_SIZE, format="csr")
-    assert linalg.SparseCholesky(big).backend == "qdldl"
+    fast = "cholmod" if linalg._have_cholmod() else "qdldl"  # CHOLMOD stands in when installed
+    assert linalg.SparseCholesky(big).backend == fast
     with pytest.raises(OptionError, match=r"lagolib\[fast\]"):
         linalg.SparseCholesky(sp.identity(3, format="csr"), "pardiso")
 
@@ -316,11 +322,24 @@ def _run_pipeline(env_extra):
 
 @pytest.fixture(scope="module")
 def without_mkl():
-    return _run_pipeline({"LAGOLIB_MKL_RT": "off"})
+    """The default install: neither MKL nor cvxopt's CHOLMOD."""
+    return _run_pipeline({"LAGOLIB_MKL_RT": "off", "LAGOLIB_CHOLMOD": "off"})
 
 
 def test_without_mkl_the_default_install_runs_on_qdldl(without_mkl):
-    assert "pardiso" not in without_mkl["backends"] and without_mkl["auto"] == "qdldl"
+    assert without_mkl["backends"] == ["qdldl", "scipy"] and without_mkl["auto"] == "qdldl"
+
+
+@pytest.mark.skipif(not linalg._have_cholmod(), reason="cvxopt (CHOLMOD) is not installed")
+def test_with_cholmod_and_without_the_results_agree(without_mkl):
+    """``pip install "lagolib[cholmod]"`` without MKL: the large systems go to CHOLMOD."""
+    cholmod = _run_pipeline({"LAGOLIB_MKL_RT": "off"})
+    assert "pardiso" not in cholmod["backends"] and cholmod["auto"] == "cholmod"
+    for key in ("lago", "poses"):
+        a, b = np.array(cholmod[key]), np.array(without_mkl[key])
+        assert np.max(np.abs(a - b)) <= 1e-10 * max(1.0, np.max(np.abs(b))), key
+    assert cholmod["chi2"] == pytest.approx(without_mkl["chi2"], rel=1e-10)
+    np.testing.assert_allclose(cholmod["cov"], without_mkl["cov"], rtol=1e-9, atol=1e-15)
 
 
 @needs_pardiso

@@ -12,7 +12,7 @@ import pytest
 
 import lagolib
 from lagolib import certify as C
-from lagolib import simulate
+from lagolib import linalg, simulate
 from lagolib.errors import BackendError
 from lagolib.linalg import _mkl_runtime
 
@@ -225,9 +225,24 @@ def test_auto_stays_on_qdldl_without_mkl(monkeypatch):
     system, (H, b, _) = _heavy_system()
     monkeypatch.setattr(linalg, "PARDISO_MIN_MFLOP", 0.0)
     monkeypatch.setattr(linalg, "_mkl_runtime", lambda: None)
+    monkeypatch.setenv("LAGOLIB_CHOLMOD", "off")  # the default install: neither
     f = linalg.SparseCholesky(H, "auto", check=False)
     f.refactor(H)
     assert f.backend == "qdldl" and f.mflops > 0
+
+
+@pytest.mark.skipif(not linalg._have_cholmod(), reason="cvxopt (CHOLMOD) is not installed")
+def test_auto_moves_to_cholmod_without_mkl(monkeypatch):
+    from lagolib import linalg
+
+    system, (H, b, _) = _heavy_system()
+    x = linalg.SparseCholesky(H, "qdldl", check=False).solve(-b)
+    monkeypatch.setattr(linalg, "PARDISO_MIN_MFLOP", 0.0)
+    monkeypatch.setattr(linalg, "_mkl_runtime", lambda: None)
+    f = linalg.SparseCholesky(H, "auto", check=False, ordering=system.ordering)
+    f.refactor(H)
+    assert f.backend == "cholmod"
+    np.testing.assert_allclose(f.solve(-b), x, rtol=0, atol=1e-9 * np.abs(x).max())
 
 
 @pytest.mark.skipif(len(ENGINES) < 2, reason="MKL is not installed")
