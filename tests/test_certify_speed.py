@@ -9,6 +9,7 @@ checked against dense linear algebra, and the two engines against each other.
 
 import numpy as np
 import pytest
+from test_certify import _reduced_dense, _rotated_anisotropic
 
 import lagolib
 from lagolib import certify as C
@@ -19,25 +20,10 @@ from lagolib.linalg import _mkl_runtime
 ENGINES = ["superlu"] + (["pardiso"] if _mkl_runtime() is not None else [])
 
 
-def _rotated_anisotropic(m, rng):
-    info = np.empty((m, 3, 3))
-    for k in range(m):
-        Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
-        info[k] = Q @ np.diag(rng.uniform([1, 20, 100], [5, 60, 400])) @ Q.T
-    return info
-
-
 def _loop(seed=0, laps=3, per_lap=12, sigma_theta=0.3):
     sim = simulate.loop_world(laps=laps, poses_per_lap=per_lap, rng=seed, sigma_theta=sigma_theta)
     rng = np.random.default_rng(seed)
     return sim.graph.with_information(_rotated_anisotropic(sim.graph.m, rng))
-
-
-def _reduced_dense(S, n):
-    """Schur complement of S on the rotations, first translation removed (dense)."""
-    keep = np.arange(1, n)
-    A, B = S[np.ix_(keep, keep)], S[np.ix_(keep, n + np.arange(n))]
-    return S[n:, n:] - B.conj().T @ np.linalg.solve(A, B)
 
 
 @pytest.fixture
