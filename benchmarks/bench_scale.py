@@ -19,7 +19,9 @@ the simulated worlds.
 
 Every measurement — one (row, library, task) — runs in its own subprocess (this script with
 ``--child``), which prints one JSON line, so the peak resident memory (``ru_maxrss``, checked
-against ``VmHWM``) is that process's alone.  Tasks, lagolib vs GTSAM:
+against ``VmHWM``) is that process's alone; it is read at the end of the first timed run (the
+peak of one call: later runs of a repeated measurement can only add what earlier ones left).
+Tasks, lagolib vs GTSAM:
 
 ``lago``
     ``lagolib.lago.lago(graph, "odometric")`` vs ``gtsam.lago.initialize(graph, True)``: the
@@ -150,6 +152,8 @@ def simulated_size(row):
 
 #: the child's ``ru_maxrss`` (MiB) once its library is imported, and once its problem is loaded
 _IMPORTED, _LOADED = [], []
+#: its ``(ru_maxrss, VmHWM)`` (MiB) at the end of the first timed run: the reported peak
+_FIRST_RUN = []
 
 
 def _phases(t0, t1, t2, t3, t4):
@@ -172,6 +176,8 @@ def timed(run, prepare=None, single_run=None):
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         if not walls or wall < min(walls):
             best = phases
+        if not walls:  # the peak of one call: later runs may add what earlier ones left behind
+            _FIRST_RUN.append((peak_rss_mib(), vmhwm_mib()))
         walls.append(wall)
         cpus.append(cpu)
         if wall > (SINGLE_RUN if single_run is None else single_run):
@@ -193,6 +199,12 @@ def _load_lagolib_graph(files):
             ids=z["ids"],
         )
     return graph
+
+
+def _fresh_graphs(graph, files):
+    """``prepare`` of the cold pipeline runs: ``graph`` (already read) first, then a new read."""
+    first = [graph]
+    return lambda: first.pop() if first else _load_lagolib_graph(files)
 
 
 def _lagolib_child(task, files, budget):
@@ -270,7 +282,7 @@ def _lagolib_child(task, files, budget):
             return None, lagolib.optimize(g, x, method="gn")
 
         best, walls, _, res, par = timed(
-            run, prepare=lambda: _load_lagolib_graph(files), single_run=PIPELINE_SINGLE_RUN
+            run, prepare=_fresh_graphs(graph, files), single_run=PIPELINE_SINGLE_RUN
         )
         rec.update(iterations=res.iterations, native_chi2=res.chi2, converged=res.converged)
         arrays["poses"] = res.poses
@@ -283,7 +295,7 @@ def _lagolib_child(task, files, budget):
                 return None, certify.solve(g)
 
         best, walls, _, res, par = timed(
-            run, prepare=lambda: _load_lagolib_graph(files), single_run=PIPELINE_SINGLE_RUN
+            run, prepare=_fresh_graphs(graph, files), single_run=PIPELINE_SINGLE_RUN
         )
         rec.update(
             native_chi2=res.chi2, f=res.f, certified=bool(res.certified), escapes=res.escapes,
@@ -518,8 +530,9 @@ def child(spec):
         cpu_per_wall=par,
         rss_imported=_IMPORTED[0] if _IMPORTED else None,
         rss_loaded=_LOADED[0] if _LOADED else None,
-        rss_peak=peak_rss_mib(),
-        hwm_peak=vmhwm_mib(),
+        rss_peak=_FIRST_RUN[0][0] if _FIRST_RUN else peak_rss_mib(),
+        hwm_peak=_FIRST_RUN[0][1] if _FIRST_RUN else vmhwm_mib(),
+        rss_peak_all_runs=peak_rss_mib(),
     )
     print(json.dumps(rec))
 
@@ -674,7 +687,7 @@ def certify_section(rows, sizes, results):
         "GN) against `optimize(graph, lago(graph).poses)` (LAGO with its default tree, then GN: "
         "t2v, first pose fixed) in the same run, each on a freshly read graph per run (cold: no "
         "ordering cached by an earlier run), best of 3 up to "
-        f"{PIPELINE_SINGLE_RUN:g} s per run; peak RSS (`ru_maxrss`, MiB) of each process "
+        f"{PIPELINE_SINGLE_RUN:g} s per run; peak RSS (`ru_maxrss`, MiB, through the first run) "
         "against GTSAM's GN (the `gn` task above). Targets: time ratio ≤ "
         f"{CT['time']}; RSS ratio ≤ {CT['rss']} from {CT['rss_from']:,} poses. The "
         "certificate's factorization: `pardiso` (MKL, complex Hermitian, from 5 × 10^4 real "
@@ -839,7 +852,8 @@ def report(args, rows, sizes, results, checks, info, started, elapsed, load):
         "",
         "## Peak resident memory (MiB) per process",
         "",
-        "`ru_maxrss` of the child after the task (the library, the problem and every run), "
+        "`ru_maxrss` of the child at the end of the task's first run (the library, the problem "
+        "and one call), "
         "in parentheses right after importing the library and loading the problem (lagolib: "
         "the `.npz` into a `PoseGraph`; GTSAM: `readG2o`); target ≤ 1.0 × GTSAM.",
         "",
