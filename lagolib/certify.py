@@ -585,6 +585,8 @@ class _FixedPattern:
         t.sum_duplicates()
         t.sort_indices()
         self.shape, self.indptr, self.indices = t.shape, t.indptr, t.indices
+        self.indptr.setflags(write=False)  # frozen: the factorization knows them by address
+        self.indices.setflags(write=False)
         rows = np.repeat(np.arange(t.shape[0], dtype=np.int64), np.diff(t.indptr))
         self.keys = rows * t.shape[1] + t.indices
         self.diag = np.searchsorted(
@@ -596,13 +598,18 @@ class _FixedPattern:
         c = H.tocoo()
         slot = np.searchsorted(self.keys, c.row.astype(np.int64) * self.shape[1] + c.col)
         data = np.bincount(slot, weights=c.data, minlength=self.keys.size)
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
+        return self._matrix(data)
 
     def damped(self, H, lam):
         """``H + lam I`` on the same pattern."""
         data = H.data.copy()
         data[self.diag] += lam
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
+        return self._matrix(data)
+
+    def _matrix(self, data):
+        H = sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
+        H.has_canonical_format = True  # the template's: sorted, no duplicates
+        return H
 
 
 def _template(Ps, M_real):

@@ -164,7 +164,7 @@ def blue(H, z, information, *, backend="auto", ordering=None, start=None, auto_r
     z : array_like, shape (M,)
     information : scipy.sparse matrix or ndarray, shape (M, M) or (M,)
         A 1-D array is the diagonal of ``Ω``.
-    backend : {"auto", "qdldl", "pardiso", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "cholmod", "scipy"}
         Sparse Cholesky backend.
     ordering : array_like of int, shape (N,), optional
         Fill-reducing ordering for PARDISO (:class:`lagolib.linalg.SparseCholesky`).

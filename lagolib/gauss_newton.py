@@ -615,6 +615,9 @@ class LinearSystem:
         for a in range(3):
             for c in range(3):
                 self._indices[base + a * stride + c] = 3 * bcol + c
+        # frozen: every H shares them, and SparseCholesky knows its pattern by their address
+        self._indptr.setflags(write=False)
+        self._indices.setflags(write=False)
         # entry (a, c) of each edge's four blocks and each prior's block: its CSR slot or `nnz`
         ue = np.zeros(keep_e.shape, dtype=np.int64)  # block 0 where dropped: masked below
         ue[keep_e] = inverse[: int(keep_e.sum())]
@@ -778,7 +781,8 @@ class LinearSystem:
         np.add.at(b, self._rows_b_p.ravel(), np.einsum("kab,ka->kb", OJp, ep).ravel())
         objective += float(np.einsum("ka,kab,kb->", ep, self._prior_info, ep))
         H = sp.csr_matrix((data[: self.nnz], self._indices, self._indptr), shape=(self.N, self.N))
-        H.has_sorted_indices = True  # by construction; spares the backends an O(nnz) check
+        H.has_canonical_format = True  # sorted, no duplicates by construction: spares the
+        # backends an O(nnz) check
         b = b[: self.N]
         return H, b, objective
 
@@ -786,7 +790,9 @@ class LinearSystem:
         """``H + lam I`` (Levenberg's damping), same pattern."""
         data = H.data.copy()
         data[self._diag_slot] += lam
-        return sp.csr_matrix((data, self._indices, self._indptr), shape=H.shape)
+        D = sp.csr_matrix((data, self._indices, self._indptr), shape=H.shape)
+        D.has_canonical_format = True
+        return D
 
     def rounding_floor(self, poses):
         """How far the objective at ``poses`` can move from floating-point rounding alone.
@@ -1254,7 +1260,7 @@ def optimize(
     linear_solver : {"cholesky", "pcg"}
         Sparse Cholesky (:class:`lagolib.linalg.SparseCholesky`) or block-Jacobi
         preconditioned conjugate gradients (:func:`lagolib.linalg.pcg`, relative residual 1e-10).
-    backend : {"auto", "qdldl", "pardiso", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "cholmod", "scipy"}
         Cholesky backend.
     lambda_initial : float
         LM's first damping; finite and ``> 0``.

@@ -348,7 +348,7 @@ def phase1_orientations(
         Vertex id with ``θ = 0`` (default: the smallest).
     omega_delta : ndarray, shape (m,), optional
         ``P_δ^-1`` per edge (frame-free); default from :func:`split_information`.
-    backend : {"auto", "qdldl", "pardiso", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "cholmod", "scipy"}
     tree : SpanningTree, optional
         When given, the normal equations are solved for the correction to the orientations the
         tree alone assigns (``tree.potentials(δ̄)``), which is small: the same estimate, accurate
@@ -480,7 +480,7 @@ def positions_given_orientations(graph, theta, *, anchor=None, Omega_Delta=None,
     Omega_Delta : ndarray, shape (m, 2, 2), optional
         ``P_Δ^-1`` per edge in the frame of its tail pose ``i``; default from
         :func:`split_information`.
-    backend : {"auto", "qdldl", "pardiso", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "cholmod", "scipy"}
 
     Returns
     -------
@@ -583,7 +583,7 @@ def phase3_poses(
     graph : PoseGraph
     phase2 : Phase2
     anchor : int, optional
-    backend : {"auto", "qdldl", "pardiso", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "cholmod", "scipy"}
     pose_ordering : ndarray of int, shape (n,), or callable, optional
         An elimination order of the free poses (:func:`pose_ordering`) — phase 1's, whose matrix
         is the pose graph's weighted Laplacian — expanded to each pose's three rows, so that it
@@ -736,7 +736,7 @@ def lago(graph, tree="min_uncertainty", anchor=None, *, margin_warning=0.1, back
     margin_warning : float
         Warn (:class:`RegularizationWarning`) when chords' cycle sums lie within this many turns
         of the rounding boundary (:attr:`Regularization.margin`); 0 turns the warning off.
-    backend : {"auto", "qdldl", "pardiso", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "cholmod", "scipy"}
         Sparse Cholesky used by phases 1 and 3.
 
     Returns

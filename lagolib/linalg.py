@@ -34,6 +34,7 @@ No function here forms a dense matrix of the system's size.
 
 from __future__ import annotations
 
+import threading
 import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -457,6 +458,10 @@ class _Pardiso:
         return int(self.iparm[18])
 
 
+#: cvxopt's ``cholmod.options`` are one module-wide dict: one scope at a time sets them
+_CHOLMOD_LOCK = threading.RLock()
+
+
 class _Cholmod:
     """CHOLMOD (SuiteSparse; supernodal ``L L^T``) through cvxopt, on one sparsity pattern.
 
@@ -489,19 +494,21 @@ class _Cholmod:
         self.perm = None  # CHOLMOD's final order (after its postordering), once factored
 
     def _options(self, options):
-        """cvxopt's module-wide ``cholmod.options``, set for one call and restored."""
+        """cvxopt's module-wide ``cholmod.options``, set for one call and restored; one thread at
+        a time (a lock), or two overlapping scopes would leave lagolib's options behind."""
         from contextlib import contextmanager
 
         @contextmanager
         def scope():
-            saved = dict(self._cholmod.options)
-            self._cholmod.options.clear()
-            self._cholmod.options.update(options)
-            try:
-                yield
-            finally:
+            with _CHOLMOD_LOCK:
+                saved = dict(self._cholmod.options)
                 self._cholmod.options.clear()
-                self._cholmod.options.update(saved)
+                self._cholmod.options.update(options)
+                try:
+                    yield
+                finally:
+                    self._cholmod.options.clear()
+                    self._cholmod.options.update(saved)
 
         return scope()
 
@@ -513,21 +520,34 @@ class _Cholmod:
             try:
                 self._cholmod.numeric(self._A, self._F)
             except ArithmeticError as exc:
-                raise NotPositiveDefiniteError(
-                    f"sparse Cholesky (CHOLMOD): the pivot of column {exc.args[0]} is not "
-                    "positive; the matrix is singular or indefinite"
-                ) from None
-        if self.perm is None:
-            B = self._matrix(np.arange(self.n, dtype=float))
-            self._cholmod.solve(self._F, B, sys=7)  # P applied to 0..N-1: the final order
-            self.perm = np.array(B).ravel().astype(np.int64)
-        d = np.array(self._cholmod.diag(self._F)).ravel() ** 2  # diag(L)^2: the pivots D
+                raise self._breakdown(exc.args[0] if exc.args else None) from None
+            if self.perm is None:
+                B = self._matrix(np.arange(self.n, dtype=float))
+                self._cholmod.solve(self._F, B, sys=7)  # P applied to 0..N-1: the final order
+                self.perm = np.array(B).ravel().astype(np.int64)
+            d = np.array(self._cholmod.diag(self._F)).ravel() ** 2  # diag(L)^2: the pivots D
         _check_pivots(d, hdiag[self.perm], self.perm, "CHOLMOD")
+
+    def _breakdown(self, k):
+        """NotPositiveDefiniteError for CHOLMOD's failure at step ``k`` of its elimination order:
+        the row of ``H`` when the order is known (from an earlier factorization of the pattern)."""
+        if isinstance(k, int) and self.perm is not None and 0 <= k < self.n:
+            row = int(self.perm[k])
+            return NotPositiveDefiniteError(
+                f"sparse Cholesky (CHOLMOD): the pivot at row {row} is not positive; the matrix "
+                "is singular or indefinite",
+                pivot=row,
+            )
+        return NotPositiveDefiniteError(
+            f"sparse Cholesky (CHOLMOD): the pivot at step {k} of its elimination order is not "
+            "positive; the matrix is singular or indefinite"
+        )
 
     def solve(self, b):
         """``H^-1 b`` for ``b`` of shape (N,) or (N, k)."""
         B = self._matrix(np.asfortranarray(b, dtype=float))
-        self._cholmod.solve(self._F, B)
+        with self._options(self._OPTIONS):
+            self._cholmod.solve(self._F, B)
         return np.array(B).reshape(b.shape)
 
     nnz_L = 0  # not exposed (reading it would turn the factor simplicial)
@@ -540,11 +560,12 @@ class SparseCholesky:
     ----------
     H : scipy.sparse matrix, shape (N, N)
         Symmetric positive definite; both triangles stored (only the upper one is read).
-    backend : {"auto", "qdldl", "pardiso", "scipy"}
-        ``"auto"``: PARDISO from :data:`PARDISO_MIN_SIZE` rows (``auto_rows``) up when MKL is
-        installed (``pip install "lagolib[fast]"``), qdldl otherwise — and PARDISO from the
-        second factorization on when qdldl's first one cost :data:`PARDISO_MIN_MFLOP` or more
-        (fill from long loop closures).
+    backend : {"auto", "qdldl", "pardiso", "cholmod", "scipy"}
+        ``"auto"``: from :data:`PARDISO_MIN_SIZE` rows (``auto_rows``) up, a supernodal
+        factorization — PARDISO when MKL is installed (``pip install "lagolib[fast]"``), else
+        CHOLMOD when cvxopt is (``pip install "lagolib[cholmod]"``) — and qdldl otherwise; the
+        same supernodal backend from the second factorization on when qdldl's first one cost
+        :data:`PARDISO_MIN_MFLOP` or more (fill from long loop closures).
     check : bool
         Check that ``H`` (and every later one given to :meth:`refactor`) is finite and
         symmetric — ``O(nnz)``; lagolib's optimizer, which builds ``H`` symmetric, skips it.
@@ -552,7 +573,7 @@ class SparseCholesky:
         An elimination order (row ``k`` of the factor is row ``ordering[k]`` of ``H``), e.g. a
         pose graph's :func:`elimination_ordering` expanded to its unknowns
         (:func:`expand_ordering`): computed once per graph, not once per matrix, and stable on
-        long chains.  PARDISO and SuperLU factor in it; qdldl computes its own (AMD) and, if that
+        long chains.  PARDISO, CHOLMOD and SuperLU factor in it; qdldl computes its own (AMD) and, if that
         breaks down, hands the matrix to SuperLU in this order (:class:`lagolib.BackendWarning`).
         A callable returning it (or None) is called only when it is needed.
     auto_rows : int or callable, optional
@@ -565,17 +586,20 @@ class SparseCholesky:
     backend : str
         The backend in use (``"auto"`` resolved).
     ordering : ndarray of int or None
-        PARDISO's ordering after the first factorization (the one given, or METIS's).
+        The ordering PARDISO, CHOLMOD or SuperLU factors in (PARDISO: the one given, or METIS's
+        after the first factorization); None on qdldl, which orders by AMD inside.
     nnz_L : int
         Entries of the factor ``L``, diagonal included: the fill its ordering leaves (0 for
-        SuperLU, which stores ``L`` and ``U`` together).
+        SuperLU, which stores ``L`` and ``U`` together, and for CHOLMOD, whose supernodal factor
+        cvxopt does not report).
     mflops : float or None
         qdldl's cost of one factorization in Mflop (``sum_j c_j^2``, ``c_j`` the entries of
         column ``j`` of ``L``), from its first factorization of a pattern; None on the other
         backends.
     fallback : str or None
-        Why PARDISO was replaced by qdldl (its factorization broke down, or its solution failed
-        the check after refinement), or None.
+        Why the supernodal backend (PARDISO or CHOLMOD) was replaced by qdldl (its factorization
+        broke down, or its solution failed the check after refinement), or why qdldl was replaced
+        by SuperLU in the given ordering; None while the first backend serves.
     last_check : SolveCheck or None
         How the last :meth:`solve` was checked: backward error, residual, refinement steps.
 
@@ -664,8 +688,9 @@ class SparseCholesky:
             self._failed = None
             return self
         H = H if H.format == "csr" and H.dtype == np.float64 else sp.csr_matrix(H, dtype=float)
-        if not H.has_sorted_indices:
-            H = H.sorted_indices()
+        if not H.has_canonical_format:  # sorted, and duplicate entries summed (scipy's meaning
+            H = H.copy()  # of them): every backend reads one value per stored position
+            H.sum_duplicates()
         if self._next_backend is not None:  # qdldl's first factorization was costly
             self.backend, self._next_backend = self._next_backend, None
             self._solver = self._pattern = None
@@ -688,8 +713,9 @@ class SparseCholesky:
         """Free the numerical factor and keep the symbolic analysis, when the backend keeps
         them apart (PARDISO): memory for work between two factorizations (lagolib.certify.solve
         frees Gauss–Newton's factor while its certificate factors another matrix).  The next
-        :meth:`refactor` factors again; until then :meth:`solve` raises.  On qdldl and SuperLU,
-        whose analysis lives in their factor, nothing is freed."""
+        :meth:`refactor` factors again; until then :meth:`solve` raises.  On qdldl, CHOLMOD (as
+        cvxopt holds it) and SuperLU, whose analysis lives in their factor, nothing is freed and
+        the factor stays usable."""
         if self.backend == "pardiso" and self._solver is not None and self._failed is None:
             self._solver.release()
             self._residual = self._triangle = self._data = None
@@ -706,7 +732,7 @@ class SparseCholesky:
     def _factor_triangle(self, H):
         """qdldl or PARDISO on the upper triangle of ``H`` (CSR, sorted, float64)."""
         same = self._pattern is not None and (
-            (_same_memory(H.indptr, self._pattern[0]) and _same_memory(H.indices, self._pattern[1]))
+            (_same_frozen(H.indptr, self._pattern[0]) and _same_frozen(H.indices, self._pattern[1]))
             or (
                 np.array_equal(H.indptr, self._pattern[0])
                 and np.array_equal(H.indices, self._pattern[1])
@@ -745,7 +771,9 @@ class SparseCholesky:
                 self._fall_back(H, f"broke down ({exc})")
                 return
             self.nnz_L = self._solver.nnz_L
-        self._pattern = (H.indptr, H.indices)  # kept, not copied: O(nnz) memory at 10^6 poses
+        # frozen index arrays (LinearSystem's) are kept, not copied: O(nnz) memory at 10^6
+        # poses; writable ones are copied, or rewriting them in place would go unnoticed
+        self._pattern = tuple(a if _frozen(a) else a.copy() for a in (H.indptr, H.indices))
 
     def _fall_back(self, H, why):
         """Factor ``H`` with qdldl instead of PARDISO (or CHOLMOD), from now on, and warn (once
@@ -757,13 +785,14 @@ class SparseCholesky:
         their ends.  When qdldl fails too, ``H`` is not positive definite: its error is raised and
         the fast backend stays.
         """
-        fast = self.backend
+        fast, ordering = self.backend, self.ordering
         self.backend, self._solver, self._pattern = "qdldl", None, None
         self._auto, self._next_backend = False, None  # never back to the fast backend
         try:
             self._factor_triangle(H)
         except NotPositiveDefiniteError:  # qdldl agrees: H is not positive definite
-            self.backend, self._solver, self._pattern = fast, None, None
+            # the fast backend stays, in its ordering (the caller's, or the one it computed)
+            self.backend, self.ordering, self._solver, self._pattern = fast, ordering, None, None
             self._failed = f"{_NAMES[fast]} {why}, and qdldl could not factor the matrix either"
             raise
         if self.backend == "qdldl":  # (else qdldl broke down too and SuperLU took over, warned)
@@ -782,12 +811,12 @@ class SparseCholesky:
         order = self._given_ordering()
         if order is None:
             raise exc
-        previous = self.backend
+        previous, previous_order = self.backend, self.ordering
         self.backend, self.ordering, self._solver, self._pattern = "scipy", order, None, None
         try:
             self._factor_scipy(H)
         except NotPositiveDefiniteError:
-            self.backend, self.ordering = previous, None
+            self.backend, self.ordering = previous, previous_order
             raise exc from None
         self.fallback = (
             f"{previous} (AMD ordering) broke down ({exc}); SuperLU factored the same matrix in "
@@ -1399,18 +1428,31 @@ def _upper_triangle(H, fmt):
     return perm, indptr, minor.astype(np.int32), (diag, major[diag])
 
 
-def _same_memory(a, b):
-    """``a`` and ``b`` view the same memory (``b`` is kept alive, so its address is not reused).
+def _same_frozen(a, b):
+    """``a`` and ``b`` view the same read-only memory (``b`` is kept alive, so its address is not
+    reused): the same index arrays, which nobody can have rewritten in place since.
 
-    LinearSystem hands every iteration's ``H`` the same index arrays (scipy wraps them in new
-    views); recognizing them spares an ``O(nnz)`` comparison per factorization.
+    LinearSystem hands every iteration's ``H`` the same index arrays, frozen (scipy wraps them in
+    new views); recognizing them spares an ``O(nnz)`` comparison per factorization.  Writable
+    arrays are compared by value: a caller may have changed the pattern in place.
     """
     return (
-        a.shape == b.shape
+        _frozen(a)
+        and _frozen(b)
+        and a.shape == b.shape
         and a.dtype == b.dtype
         and a.strides == b.strides
         and a.ctypes.data == b.ctypes.data
     )
+
+
+def _frozen(a):
+    """``a`` and every array it views are read-only (none can be written through)."""
+    while isinstance(a, np.ndarray):
+        if a.flags.writeable:
+            return False
+        a = a.base
+    return True
 
 
 #: A pivot below this fraction of its row's diagonal entry means the matrix is numerically
@@ -1459,7 +1501,7 @@ def solve_spd(H, b, backend="auto"):
     ----------
     H : scipy.sparse matrix, shape (N, N)
     b : array_like, shape (N,) or (N, k)
-    backend : {"auto", "qdldl", "pardiso", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "cholmod", "scipy"}
 
     Returns
     -------

@@ -150,7 +150,7 @@ def marginal_covariances(
         World-frame ``(x, y, theta)`` covariance, or rotated into each pose's frame (GTSAM's
         ``Marginals`` convention).
     method : {"takahashi", "solves"}
-    backend : {"auto", "qdldl", "pardiso", "scipy"}
+    backend : {"auto", "qdldl", "pardiso", "cholmod", "scipy"}
         The factorization of ``method="solves"`` (selected inversion reads qdldl's factor).
     batch : int
         Poses per block of right-hand sides (``method="solves"``).

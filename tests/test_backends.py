@@ -120,6 +120,141 @@ def test_not_positive_definite_is_named(backend, M, what):
         linalg.SparseCholesky(sp.csr_matrix(np.array(M)), backend)
 
 
+def _random_spd(n, seed):
+    rng = np.random.default_rng(seed)
+    A = sp.random(n, n, density=0.08, random_state=rng)
+    H = sp.csr_matrix(A @ A.T + sp.identity(n))
+    H.sort_indices()
+    return H
+
+
+@pytest.mark.parametrize("backend", FACTORING)
+def test_duplicate_entries_are_summed_as_scipy_sums_them(backend):
+    """A CSR matrix may store one position twice (scipy means the sum); every backend must read
+    the sum — before, qdldl refused it, CHOLMOD raised and PARDISO answered wrong."""
+    H = _random_spd(30, 3)
+    d = H.diagonal()
+    coo = H.tocoo()
+    off = coo.row != coo.col
+    rows = np.concatenate([coo.row[off], np.arange(30), np.arange(30)])
+    cols = np.concatenate([coo.col[off], np.arange(30), np.arange(30)])
+    vals = np.concatenate([coo.data[off], 0.25 * d, 0.75 * d])  # each diagonal stored twice
+    order = np.lexsort((cols, rows))
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=30))])
+    D = sp.csr_matrix((vals[order], cols[order], indptr), shape=(30, 30))
+    assert not D.has_canonical_format and np.allclose(D.toarray(), H.toarray())
+    b = np.arange(1.0, 31.0)
+    x = linalg.SparseCholesky(D, backend).solve(b)
+    np.testing.assert_allclose(x, np.linalg.solve(H.toarray(), b), rtol=1e-10, atol=0)
+
+
+@pytest.mark.parametrize("backend", FACTORING)
+def test_a_pattern_rewritten_in_place_is_analysed_again(backend):
+    """Index arrays the caller changes in place are a new pattern, not the one analysed."""
+    H = sp.csr_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 4.0, 1.0], [0.0, 1.0, 4.0]]))
+    F = linalg.SparseCholesky(H, backend)
+    B = np.array([[4.0, 0.0, 1.0], [0.0, 4.0, 1.0], [1.0, 1.0, 4.0]])
+    new = sp.csr_matrix(B)
+    H.indptr[:], H.indices[:], H.data[:] = new.indptr, new.indices, new.data
+    x = F.refactor(H).solve(np.ones(3))
+    np.testing.assert_allclose(x, np.linalg.solve(B, np.ones(3)), rtol=1e-12)
+
+
+def test_gauss_newton_systems_share_frozen_index_arrays(world):
+    """LinearSystem's H share read-only index arrays: the backends know the pattern by address,
+    with no O(nnz) comparison and no copy."""
+    system = gn.LinearSystem(world, prior=lagolib.Prior.from_sigmas(0, world.poses[0], [0.1] * 3))
+    H1, H2 = system.assemble(world.poses)[0], system.assemble(world.poses + 0.01)[0]
+    assert H1.has_canonical_format and linalg._same_frozen(H1.indices, H2.indices)
+    F = linalg.SparseCholesky(H1, "qdldl", check=False)
+    assert F._pattern[1] is H1.indices  # kept, not copied
+    with pytest.raises(ValueError):
+        H1.indices[0] = 1  # nobody can rewrite them
+
+
+@pytest.mark.parametrize("backend", [b for b in FACTORING if b in ("pardiso", "cholmod")])
+def test_the_given_ordering_survives_a_failed_refactor(backend):
+    """A failed refactor (the damped loop's rejected step) and a good one after it keep the
+    caller's ordering: the fallback path restores it, it never drops to the backend's own."""
+    H = _random_spd(40, 1)
+    p = np.arange(40)[::-1].copy()
+    off = (H - sp.diags(H.diagonal())).tocsr()
+    F = linalg.SparseCholesky(H, backend, ordering=p)
+    with pytest.raises(NotPositiveDefiniteError):
+        F.refactor((H + 50 * off).tocsr())  # the same pattern, indefinite
+    with pytest.raises(NotPositiveDefiniteError):
+        F.solve(np.ones(40))  # nothing usable after the failure
+    F.refactor(H)
+    assert F.backend == backend
+    np.testing.assert_array_equal(F.ordering, p)
+    np.testing.assert_allclose(F.solve(np.ones(40)), np.linalg.solve(H.toarray(), np.ones(40)))
+
+
+@pytest.mark.skipif(not linalg._have_cholmod(), reason="cvxopt (CHOLMOD) is not installed")
+def test_cholmod_leaves_cvxopt_options_alone_across_threads():
+    """cvxopt's cholmod.options are module-wide: lagolib sets them under a lock, per call."""
+    import threading
+
+    from cvxopt import cholmod
+
+    saved = dict(cholmod.options)
+    cholmod.options.clear()
+    mats = [_random_spd(40, 1), _random_spd(60, 2)]
+    errors = []
+
+    def work(H, order):
+        try:
+            for _ in range(40):
+                F = linalg.SparseCholesky(H, "cholmod", ordering=order)
+                np.testing.assert_allclose(
+                    H @ F.solve(np.ones(H.shape[0])), np.ones(H.shape[0]), atol=1e-9
+                )
+        except Exception as exc:  # pragma: no cover - reported below
+            errors.append(exc)
+
+    threads = [
+        threading.Thread(target=work, args=(mats[0], np.arange(40)[::-1].copy())),
+        threading.Thread(target=work, args=(mats[1], None)),
+    ]
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)
+    try:
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        leaked = dict(cholmod.options)
+    finally:
+        sys.setswitchinterval(old)
+        cholmod.options.clear()
+        cholmod.options.update(saved)
+    assert not errors and leaked == {}
+
+
+@pytest.mark.skipif(not linalg._have_cholmod(), reason="cvxopt (CHOLMOD) is not installed")
+def test_cholmod_breakdown_names_a_row_of_h():
+    H = _random_spd(30, 4)
+    F = linalg.SparseCholesky(H, "cholmod")  # the order is known from now on
+    coo = H.tocoo()
+    i, j = next((a, b) for a, b in zip(coo.row, coo.col) if a < b)  # a stored pair
+    bad = H.tolil()
+    bad[i, i] = 1e-3
+    bad[i, j] = bad[j, i] = 5.0
+    bad = bad.tocsr()
+    assert bad.nnz == H.nnz  # the same pattern: only the numerical factorization runs
+    with pytest.raises(NotPositiveDefiniteError) as err:
+        F._solver.factor(bad.data[F._upper[0]], bad.diagonal())
+    row = err.value.pivot
+    assert f"row {row}" in str(err.value)
+    # in CHOLMOD's elimination order, the rows up to the named one are the first that are not
+    # positive definite (dense reference)
+    order = F._solver.perm
+    k = int(np.flatnonzero(order == row)[0])
+    D = bad.toarray()
+    lead = lambda j: np.linalg.eigvalsh(D[np.ix_(order[:j], order[:j])]).min()  # noqa: E731
+    assert lead(k) > 0 >= lead(k + 1)
+
+
 @needs_pardiso
 def test_pardiso_missing_diagonal_entry_names_the_row():
     H = sp.csr_matrix(np.array([[2.0, 1.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 2.0]]))
