@@ -1,5 +1,6 @@
 """Shared helpers of the benchmark scripts: timing, and the peak memory of the process."""
 
+import os
 import resource
 import subprocess
 import sys
@@ -46,3 +47,19 @@ def package_version(pkg):
         return metadata.version(pkg)
     except metadata.PackageNotFoundError:
         return "not installed"
+
+
+def install_label():
+    """Which of lagolib's installs a run measures: the backend of its large systems."""
+    from lagolib import linalg
+
+    if linalg._mkl_runtime() is not None:
+        return 'MKL PARDISO available to lagolib (`pip install "lagolib[fast]"`)'
+    hidden = os.environ.get("LAGOLIB_MKL_RT", "").lower() == "off"
+    why = "MKL hidden (`LAGOLIB_MKL_RT=off`)" if hidden else "no MKL"
+    if linalg._have_cholmod():
+        return (
+            f"{why}, CHOLMOD from cvxopt: what the book's install gives "
+            '(`pip install -e ".[book]"`, or `lagolib[cholmod]`)'
+        )
+    return f"{why}, no CHOLMOD: what `pip install lagolib` gives (qdldl)"

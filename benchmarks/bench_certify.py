@@ -46,11 +46,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from _timing import package_version as _version  # benchmarks/ is on sys.path as a script
+from _timing import install_label  # benchmarks/ is on sys.path as a script
+from _timing import package_version as _version
 from run_all import machine
 
 HERE = Path(__file__).resolve().parent
-PACKAGES = ("numpy", "scipy", "qdldl", "gtsam", "lagolib")
+PACKAGES = ("numpy", "scipy", "qdldl", "mkl", "cvxopt", "gtsam", "lagolib")
 #: GTSAM's prior on the first pose, as in its ``Pose2SLAMExample_lago``: variances (x, y, θ).
 PRIOR_VARIANCES = (1e-6, 1e-6, 1e-8)
 #: LM's stopping tolerances (relative and absolute decrease of the error): tight, so that the
@@ -918,7 +919,7 @@ def report_fixed(fixed):
         "`certify.solve(graph)` against GTSAM's `lago.initialize` + `LevenbergMarquardtOptimizer` "
         "(as in part 1) on `simulate.manhattan_world(n_poses=200, extent=9, rng=0)`, warm, "
         "interleaved calls in one process (median and best of each); target: ratio ≤ 2. "
-        "\"sparse\" counts the SciPy compressed sparse matrices one call constructs.",
+        '"sparse" counts the SciPy compressed sparse matrices one call constructs.',
         "",
         "| poses | edges | certify.solve median (best) | GTSAM LAGO + LM median (best) | ratio "
         "| certified | LAGO / GN / polish / certificate ms | sparse |",
@@ -976,6 +977,7 @@ def write_report(args, parts, started, elapsed, loads):
         f"- Machine: {m['cpu']}, {m['cores']} cores, {m['ram']} RAM; {m['os']}",
         f"- Python {platform.python_version()}; "
         + ", ".join(f"{p} {_version(p)}" for p in PACKAGES),
+        f"- Install: {install_label()}",
         f"- Load average (1/5/15 min): {loads[0]} at the start, {loads[1]} at the end (other jobs "
         "may share the cores: compare ratios measured in the same run, not absolute times "
         "across runs)",

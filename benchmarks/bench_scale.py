@@ -68,6 +68,7 @@ from pathlib import Path
 
 from _timing import (  # benchmarks/ is on sys.path when run as a script
     importable,
+    install_label,
     package_version,
     peak_rss_mib,
     vmhwm_mib,
@@ -89,7 +90,7 @@ SINGLE_RUN = 2.0
 #: the two pipeline rows (lago_gn, certify) are compared with each other: best of 3 cold runs
 #: up to this many seconds per run, so that both sides of their ratio get as many runs
 PIPELINE_SINGLE_RUN = 15.0
-PACKAGES = ("lagolib", "numpy", "scipy", "qdldl", "mkl", "gtsam", "g2opy")
+PACKAGES = ("lagolib", "numpy", "scipy", "qdldl", "mkl", "cvxopt", "gtsam", "g2opy")
 THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "TBB_NUM_THREADS")
 WHO = {
     "lago": ("lagolib", "gtsam"),
@@ -748,12 +749,7 @@ def report(args, rows, sizes, results, checks, info, started, elapsed, load):
         f"- Machine: {info['cpu']}, nproc {info['nproc']}, {info['ram']} RAM; {info['os']}; "
         f"Python {info['python']}",
         "- Versions: " + ", ".join(f"{p} {package_version(p)}" for p in PACKAGES),
-        "- Install: "
-        + (
-            "MKL hidden (`LAGOLIB_MKL_RT=off`): what `pip install lagolib` gives"
-            if os.environ.get("LAGOLIB_MKL_RT", "").lower() == "off"
-            else 'MKL PARDISO available to lagolib (`pip install "lagolib[fast]"`)'
-        ),
+        "- Install: " + install_label(),
         f"- Load average (1/5/15 min): {'/'.join(f'{x:.2f}' for x in load[0])} at the start, "
         f"{'/'.join(f'{x:.2f}' for x in load[1])} at the end (other jobs on the same cores change "
         "absolute times; compare the ratios of one run)",
