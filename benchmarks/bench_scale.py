@@ -301,7 +301,7 @@ def _lagolib_child(task, files, budget):
         rec.update(
             native_chi2=res.chi2, f=res.f, certified=bool(res.certified), escapes=res.escapes,
             phases={k: v for k, v in res.timings.items() if k != "total"},
-            engine="pardiso" if linalg._auto_backend(4 * graph.n - 2) == "pardiso" else "superlu",
+            engine=certify._certificate_engine(2 * graph.n - 1),
         )  # fmt: skip
         arrays["poses"] = res.poses
     elif task == "marg":
@@ -691,8 +691,8 @@ def certify_section(rows, sizes, results):
         f"{PIPELINE_SINGLE_RUN:g} s per run; peak RSS (`ru_maxrss`, MiB, through the first run) "
         "against GTSAM's GN (the `gn` task above). Targets: time ratio ≤ "
         f"{CT['time']}; RSS ratio ≤ {CT['rss']} from {CT['rss_from']:,} poses. The "
-        "certificate's factorization: `pardiso` (MKL, complex Hermitian, from 5 × 10^4 real "
-        "rows) or `superlu` (SciPy, complex).",
+        "certificate's factorization (complex Hermitian, 2n − 1 rows): `pardiso` (MKL) or "
+        "`cholmod` (cvxopt, without MKL) from 5 × 10^4 real rows, else `superlu` (SciPy).",
         "",
         "| row | poses | certify.solve | LAGO + GN | ratio | certified | f | certificate "
         "engine | LAGO / GN / polish / certificate / escape | RSS certify.solve | RSS LAGO + GN "

@@ -94,6 +94,7 @@ from .lago import RegularizationWarning, lago, pose_ordering
 from .linalg import (
     SparseCholesky,
     _auto_backend,
+    _Cholmod,
     _Pardiso,
     single_threaded_blas,
 )
@@ -862,6 +863,14 @@ def reduced_certificate_matrix(problem, x):
     return sp.csc_matrix((data, F.indices, F.indptr), shape=F.shape), zrows
 
 
+def _certificate_engine(rows):
+    """The engine of the certificate's complex factorization of ``rows`` rows: ``"pardiso"`` or
+    ``"cholmod"`` where ``SparseCholesky(backend="auto")`` would take that backend for the real
+    form's ``2 rows``, else ``"superlu"``."""
+    fast = _auto_backend(2 * rows)
+    return fast if fast in ("pardiso", "cholmod") else "superlu"
+
+
 class _ShiftedFactor:
     """Sparse ``L D L^H`` of ``K + s I_z`` for several shifts ``s``, and its inertia.
 
@@ -873,11 +882,13 @@ class _ShiftedFactor:
     pivot was perturbed or exchanged and every pivot is positive; the number of negative
     pivots is the number of eigenvalues of ``S~`` below ``-s`` (Sylvester's law of inertia).
 
-    Two engines, chosen as :class:`lagolib.linalg.SparseCholesky`'s ``backend="auto"`` chooses
-    for ``4 n - 2`` real rows: MKL PARDISO (``mtype = -4``, complex Hermitian indefinite,
-    supernodal, 1 x 1 pivots in the given order, the inertia from ``iparm[21], iparm[22]``; the
-    symbolic analysis once per certificate, one numerical factorization per shift) or SciPy's
-    SuperLU on the complex matrix with diagonal pivots (``U``'s diagonal is ``D``).
+    Three engines, chosen as :class:`lagolib.linalg.SparseCholesky`'s ``backend="auto"``
+    chooses for ``4 n - 2`` real rows (:func:`_certificate_engine`): MKL PARDISO (``mtype =
+    -4``, complex Hermitian indefinite, supernodal, 1 x 1 pivots in the given order, the inertia
+    from ``iparm[21], iparm[22]``), CHOLMOD from cvxopt (supernodal complex ``L L^H`` in the
+    given order; positive definite iff it succeeds and passes lagolib's pivot check) — both with
+    the symbolic analysis once per certificate, one numerical factorization per shift — or
+    SciPy's SuperLU on the complex matrix with diagonal pivots (``U``'s diagonal is ``D``).
 
     A factorization is trusted only after a check: every solve measures its componentwise
     backward error ``max_i |b - A x|_i / (|A| |x| + |b|)_i`` (two sparse products), refines a bad
@@ -891,8 +902,9 @@ class _ShiftedFactor:
         F, U, self._zpos, self._f_slots, self._u_slots = problem._hermitian_form
         self._F, self._U = F, U
         self._base = F.data[self._f_slots] - lam  # M_zz's diagonal minus the multipliers
-        self.engine = "pardiso" if _auto_backend(2 * F.shape[0]) == "pardiso" else "superlu"
-        self._pardiso = None  # the analysis, once (PARDISO)
+        self.engine = _certificate_engine(F.shape[0])
+        self._pardiso = self._cholmod = None  # the analysis, once (PARDISO, CHOLMOD)
+        self._u_diag = _diagonal_slots(U)  # where U's diagonal sits (CHOLMOD's pivot check)
         self._lu = self._A = self._abs = None
         self.shift = None
         self.backward_error = 0.0
@@ -913,6 +925,16 @@ class _ShiftedFactor:
             if positive != N or perturbed:
                 return False  # an indefinite factor is never solved with
             self._lu = _PardisoSolve(self._pardiso, udata)
+        elif self.engine == "cholmod":
+            udata = self._U.data.copy()
+            udata[self._u_slots] = self._base + shift
+            if self._cholmod is None:  # given order (the problem's), as PARDISO
+                self._cholmod = _Cholmod(self._U, np.arange(N), dtype=complex)
+            try:  # U's rows read as L's columns: the values conjugated
+                self._cholmod.factor(np.conj(udata), udata[self._u_diag].real)
+            except NotPositiveDefiniteError:
+                return False  # nothing to solve with (the factor is refused)
+            self._lu = self._cholmod
         else:
             try:
                 with single_threaded_blas():  # small supernodes: threads only wait
@@ -937,7 +959,7 @@ class _ShiftedFactor:
 
     def _solve_ordered(self, b):
         """``A^-1 b`` in the factor's order, with the backward-error check."""
-        if self.engine == "pardiso":
+        if self.engine != "superlu":
             return self._checked_solve(b)
         with single_threaded_blas():
             return self._checked_solve(b)
@@ -957,7 +979,7 @@ class _ShiftedFactor:
         self.backward_error = max(self.backward_error, err)
         if not err <= SOLVE_TOL:
             relative = float(np.linalg.norm(r) / max(np.linalg.norm(b), np.finfo(float).tiny))
-            which = "PARDISO" if self.engine == "pardiso" else "SuperLU"
+            which = {"pardiso": "PARDISO", "cholmod": "CHOLMOD"}.get(self.engine, "SuperLU")
             raise BackendError(
                 f"certify: the sparse L D L^H factorization ({which}) of the certificate matrix "
                 f"K + {self.shift:.3g} I_z ({self._A.shape[0]} complex rows) is inaccurate: a "

@@ -475,14 +475,18 @@ class _Cholmod:
 
     _OPTIONS = {"supernodal": 2, "postorder": True}
 
-    def __init__(self, U, ordering=None):
+    def __init__(self, U, ordering=None, dtype=float):
         import cvxopt
         from cvxopt import cholmod
 
         self._cholmod, self._matrix = cholmod, cvxopt.matrix
+        # real symmetric, or complex Hermitian (L L^H; U's values then enter conjugated: row j
+        # of the upper triangle, read as column j of the lower one)
+        self.dtype = np.dtype(dtype)
         N = self.n = U.shape[0]
         cols = np.repeat(np.arange(N, dtype=np.int64), np.diff(U.indptr))
-        self._A = cvxopt.spmatrix(1.0, U.indices.astype(np.int64), cols, (N, N))
+        one = 1.0 + 0.0j if self.dtype.kind == "c" else 1.0
+        self._A = cvxopt.spmatrix(one, U.indices.astype(np.int64), cols, (N, N))
         if len(self._A.V) != U.nnz:  # pragma: no cover - cvxopt keeps the triplets' pattern
             raise BackendError("sparse Cholesky (CHOLMOD): cvxopt changed the pattern")
         options, given = dict(self._OPTIONS), {}
@@ -513,19 +517,20 @@ class _Cholmod:
         return scope()
 
     def factor(self, data, hdiag):
-        """Numerical factorization of ``data`` (``U``'s values); NotPositiveDefiniteError when a
-        pivot is not positive (CHOLMOD's ``ArithmeticError``) or fails lagolib's pivot check."""
-        self._A.V = self._matrix(np.ascontiguousarray(data, dtype=float))
+        """Numerical factorization of ``data`` (``U``'s values; conjugated for a complex
+        Hermitian matrix) with ``hdiag`` its diagonal; NotPositiveDefiniteError when a pivot is
+        not positive (CHOLMOD's ``ArithmeticError``) or fails lagolib's pivot check."""
+        self._A.V = self._matrix(np.ascontiguousarray(data, dtype=self.dtype))
         with self._options(self._OPTIONS):
             try:
                 self._cholmod.numeric(self._A, self._F)
             except ArithmeticError as exc:
                 raise self._breakdown(exc.args[0] if exc.args else None) from None
             if self.perm is None:
-                B = self._matrix(np.arange(self.n, dtype=float))
+                B = self._matrix(np.arange(self.n, dtype=self.dtype))
                 self._cholmod.solve(self._F, B, sys=7)  # P applied to 0..N-1: the final order
-                self.perm = np.array(B).ravel().astype(np.int64)
-            d = np.array(self._cholmod.diag(self._F)).ravel() ** 2  # diag(L)^2: the pivots D
+                self.perm = np.array(B).ravel().real.astype(np.int64)
+            d = np.array(self._cholmod.diag(self._F)).ravel().real ** 2  # diag(L)^2: pivots D
         _check_pivots(d, hdiag[self.perm], self.perm, "CHOLMOD")
 
     def _breakdown(self, k):
@@ -545,7 +550,7 @@ class _Cholmod:
 
     def solve(self, b):
         """``H^-1 b`` for ``b`` of shape (N,) or (N, k)."""
-        B = self._matrix(np.asfortranarray(b, dtype=float))
+        B = self._matrix(np.asfortranarray(b, dtype=self.dtype))
         with self._options(self._OPTIONS):
             self._cholmod.solve(self._F, B)
         return np.array(B).reshape(b.shape)

@@ -15,9 +15,13 @@ import lagolib
 from lagolib import certify as C
 from lagolib import linalg, simulate
 from lagolib.errors import BackendError
-from lagolib.linalg import _mkl_runtime
+from lagolib.linalg import _have_cholmod, _mkl_runtime
 
-ENGINES = ["superlu"] + (["pardiso"] if _mkl_runtime() is not None else [])
+ENGINES = (
+    ["superlu"]
+    + (["pardiso"] if _mkl_runtime() is not None else [])
+    + (["cholmod"] if _have_cholmod() else [])
+)
 
 
 def _loop(seed=0, laps=3, per_lap=12, sigma_theta=0.3):
@@ -28,9 +32,10 @@ def _loop(seed=0, laps=3, per_lap=12, sigma_theta=0.3):
 
 @pytest.fixture
 def engine(request, monkeypatch):
-    """Force the certificate's engine (PARDISO is chosen from 5 x 10^4 real rows otherwise)."""
+    """Force the certificate's engine (PARDISO or CHOLMOD is chosen from 5 x 10^4 real rows
+    otherwise)."""
     name = request.param
-    monkeypatch.setattr(C, "_auto_backend", lambda N: "pardiso" if name == "pardiso" else "qdldl")
+    monkeypatch.setattr(C, "_auto_backend", lambda N: name.replace("superlu", "qdldl"))
     return name
 
 
@@ -59,7 +64,7 @@ def test_positive_definite_verdicts_are_the_dense_inertia(engine):
 def test_negative_pivots_count_the_eigenvalues_below_the_shift(engine):
     """PARDISO's inertia (iparm[21], iparm[22]) is Sylvester's count of the dense eigenvalues."""
     if engine != "pardiso":
-        pytest.skip("SuperLU reports only positive definiteness here")
+        pytest.skip(f"{engine} reports only positive definiteness here")
     g = _loop(5)
     p = C.chordal_problem(g)
     x = C.to_complex(g.poses + np.random.default_rng(5).normal(0.0, 0.4, g.poses.shape))
@@ -97,10 +102,10 @@ def test_eigenvalues_and_bound_equal_the_dense_schur_complement(engine):
         assert cert.backward_error <= C.SOLVE_TOL
 
 
-def test_the_two_engines_give_the_same_certificates(monkeypatch):
+def test_the_engines_give_the_same_certificates(monkeypatch):
     """On a 1500-pose world at its optimum and at a local minimum of a noisy loop."""
     if len(ENGINES) < 2:
-        pytest.skip("MKL is not installed")
+        pytest.skip("neither MKL nor CHOLMOD is installed")
     world = simulate.manhattan_world(n_poses=1500, extent=24, rng=2).graph
     pw = C.chordal_problem(world)
     at_optimum = C.refine(pw, C.solve(world).chordal_poses).poses
@@ -111,21 +116,27 @@ def test_the_two_engines_give_the_same_certificates(monkeypatch):
     for name in ENGINES:
         monkeypatch.setattr(C, "_auto_backend", lambda N, name=name: name.replace("superlu", "q"))
         out[name] = [C.certify(pw, at_optimum, eigenvalues=2), C.certify(pl, local)]
-    for a, b in zip(out["superlu"], out["pardiso"]):
-        assert a.certified == b.certified
-        assert a.lower_bound == pytest.approx(b.lower_bound, rel=1e-10)
-        np.testing.assert_allclose(a.eigenvalues, b.eigenvalues, rtol=1e-7, atol=1e-9)
-    assert out["pardiso"][0].certified and not out["pardiso"][1].certified
+    for name in ENGINES[1:]:
+        for a, b in zip(out["superlu"], out[name]):
+            assert a.certified == b.certified
+            assert a.lower_bound == pytest.approx(b.lower_bound, rel=1e-10)
+            np.testing.assert_allclose(a.eigenvalues, b.eigenvalues, rtol=1e-7, atol=1e-9)
+            assert b.backward_error <= C.SOLVE_TOL
+    for name in ENGINES:
+        assert out[name][0].certified and not out[name][1].certified
 
 
 @pytest.mark.parametrize("engine", ENGINES, indirect=True)
-def test_a_bad_factorization_is_refused_on_either_engine(engine, monkeypatch):
+def test_a_bad_factorization_is_refused_on_every_engine(engine, monkeypatch):
     g = _loop(3)
     p = C.chordal_problem(g)
     x = C.refine(p, g.poses).poses
     if engine == "pardiso":
         solve = C._PardisoSolve.solve
         monkeypatch.setattr(C._PardisoSolve, "solve", lambda self, b: 1.6 * solve(self, b))
+    elif engine == "cholmod":
+        solve = C._Cholmod.solve
+        monkeypatch.setattr(C._Cholmod, "solve", lambda self, b: 1.6 * solve(self, b))
     else:
         splu = C.spla.splu
 
