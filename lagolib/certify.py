@@ -886,7 +886,7 @@ class _ShiftedFactor:
     chooses for ``4 n - 2`` real rows (:func:`_certificate_engine`): MKL PARDISO (``mtype =
     -4``, complex Hermitian indefinite, supernodal, 1 x 1 pivots in the given order, the inertia
     from ``iparm[21], iparm[22]``), CHOLMOD from cvxopt (supernodal complex ``L L^H`` in the
-    given order; positive definite iff it succeeds and passes lagolib's pivot check) — both with
+    given order; positive definite iff it succeeds: every pivot positive) — both with
     the symbolic analysis once per certificate, one numerical factorization per shift — or
     SciPy's SuperLU on the complex matrix with diagonal pivots (``U``'s diagonal is ``D``).
 
@@ -930,8 +930,12 @@ class _ShiftedFactor:
             udata[self._u_slots] = self._base + shift
             if self._cholmod is None:  # given order (the problem's), as PARDISO
                 self._cholmod = _Cholmod(self._U, np.arange(N), dtype=complex)
-            try:  # U's rows read as L's columns: the values conjugated
-                self._cholmod.factor(np.conj(udata), udata[self._u_diag].real)
+            # U's rows read as L's columns: the values conjugated.  The verdict is CHOLMOD's
+            # own (every pivot positive), as PARDISO's and SuperLU's: a small pivot left by
+            # cancellation can be accurate (information weights 1e-6 beside 1e7), and the
+            # solve's backward-error check below judges the factor's accuracy
+            try:
+                self._cholmod.factor(np.conj(udata), udata[self._u_diag].real, pivot_tol=0.0)
             except NotPositiveDefiniteError:
                 return False  # nothing to solve with (the factor is refused)
             self._lu = self._cholmod

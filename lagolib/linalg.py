@@ -516,10 +516,11 @@ class _Cholmod:
 
         return scope()
 
-    def factor(self, data, hdiag):
+    def factor(self, data, hdiag, pivot_tol=None):
         """Numerical factorization of ``data`` (``U``'s values; conjugated for a complex
         Hermitian matrix) with ``hdiag`` its diagonal; NotPositiveDefiniteError when a pivot is
-        not positive (CHOLMOD's ``ArithmeticError``) or fails lagolib's pivot check."""
+        not positive (CHOLMOD's ``ArithmeticError``) or below ``pivot_tol`` (default
+        :data:`PIVOT_TOL`) of its diagonal entry."""
         self._A.V = self._matrix(np.ascontiguousarray(data, dtype=self.dtype))
         with self._options(self._OPTIONS):
             try:
@@ -531,7 +532,7 @@ class _Cholmod:
                 self._cholmod.solve(self._F, B, sys=7)  # P applied to 0..N-1: the final order
                 self.perm = np.array(B).ravel().real.astype(np.int64)
             d = np.array(self._cholmod.diag(self._F)).ravel().real ** 2  # diag(L)^2: pivots D
-        _check_pivots(d, hdiag[self.perm], self.perm, "CHOLMOD")
+        _check_pivots(d, hdiag[self.perm], self.perm, "CHOLMOD", pivot_tol)
 
     def _breakdown(self, k):
         """NotPositiveDefiniteError for CHOLMOD's failure at step ``k`` of its elimination order:
@@ -1468,11 +1469,13 @@ def _frozen(a):
 PIVOT_TOL = 1e-12
 
 
-def _check_pivots(d, diag, rows, backend):
-    """Every pivot ``d[k]`` positive and at least :data:`PIVOT_TOL` of ``diag[k]`` (the diagonal
-    entry of its row ``rows[k]`` of ``H``), or NotPositiveDefiniteError naming the row."""
+def _check_pivots(d, diag, rows, backend, tol=None):
+    """Every pivot ``d[k]`` positive and at least ``tol`` (default :data:`PIVOT_TOL`) of
+    ``diag[k]`` (the diagonal entry of its row ``rows[k]`` of ``H``), or
+    NotPositiveDefiniteError naming the row."""
+    tol = PIVOT_TOL if tol is None else tol
     with np.errstate(divide="ignore", invalid="ignore"):
-        ok = (d > 0) & (d >= PIVOT_TOL * diag)
+        ok = (d > 0) & (d >= tol * diag)
     bad = np.flatnonzero(~ok)
     if bad.size:
         k = bad[0]

@@ -152,6 +152,32 @@ def test_a_bad_factorization_is_refused_on_every_engine(engine, monkeypatch):
         C.certify(p, x)
 
 
+def test_weights_spread_over_thirteen_orders_give_one_verdict_on_every_engine(monkeypatch):
+    """A chain with information 1e-6 beside 1e7: K + s I_z is positive definite (dense) with a
+    pivot 1e-13 of its diagonal, accurate nonetheless; every engine must say so, and certify
+    alike (CHOLMOD once refused it by a relative pivot check, and certify() raised)."""
+    rng = np.random.default_rng(0)
+    poses = np.column_stack([np.arange(3.0), rng.normal(0, 0.1, 3), rng.normal(0, 0.3, 3)])
+    z = np.column_stack([np.ones(2), rng.normal(0, 0.1, 2), rng.normal(0, 0.3, 2)])
+    Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+    info = [1e-6 * Q @ np.diag([1.0, 2.0, 3.0]) @ Q.T, 1e7 * Q @ np.diag([1.0, 2.0, 3.0]) @ Q.T]
+    g = lagolib.PoseGraph(poses, [(0, 1), (1, 2)], z, info)
+    p = C.chordal_problem(g)
+    x = C.refine(p, g.poses).poses
+    lam = C.multipliers(p, C.to_complex(x))
+    ev = np.linalg.eigvalsh(_reduced_dense(C.certificate_matrix(p, C.to_complex(x)).toarray(), 3))
+    certs = {}
+    for name in ENGINES:
+        monkeypatch.setattr(C, "_auto_backend", lambda N, name=name: name.replace("superlu", "q"))
+        factor = C._ShiftedFactor(p, lam)
+        for s in (-0.5 * ev[0], 2.0 * abs(ev[0]), 1e-5):
+            assert factor.factor(s) == bool(ev[0] > -s), (name, s, ev[:2])
+        certs[name] = C.certify(p, x)
+    for name, cert in certs.items():
+        assert cert.certified == certs["superlu"].certified == (ev[0] >= -cert.eta), name
+        assert cert.lower_bound == pytest.approx(certs["superlu"].lower_bound, rel=1e-9), name
+
+
 def _newton_reference(p, poses, free):
     """``H = 2 Re(P^H S P)`` and ``b = 2 Re(P^H M x)`` by the definition: dense products of the
     complex matrices (the readable form of :class:`ChordalNewtonSystem`)."""
