@@ -742,7 +742,9 @@ def _refine(problem, initial, *, method, max_iterations, tol, step_tol, verbose,
         control = _LevenbergMarquardtDamping(1e-8)
     solve_ = solver.bind(system)
     trace = _Trace(method, verbose)
-    x, f, stop = _minimize(system, x, control, solve_, trace, max_iterations, tol, step_tol, None)
+    x, f, stop = _minimize(
+        system, x, control, solve_, trace, max_iterations, tol, step_tol, None, flat_steps=True
+    )
     converged, reason = stop or (False, f"reached max_iterations={max_iterations}")
     trace.timings["total"] = time.perf_counter() - t0
     return OptimizeResult(

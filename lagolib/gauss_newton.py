@@ -63,6 +63,7 @@ from .kernels import kernel as as_kernel
 from .linalg import (
     BACKENDS,
     SparseCholesky,
+    _norm2,
     _rows_key,
     core_size,
     elimination_ordering,
@@ -1403,11 +1404,17 @@ def _optimize(
     )
 
 
-def _minimize(system, x, control, solve, trace, max_iterations, tol, step_tol, callback):
+def _minimize(
+    system, x, control, solve, trace, max_iterations, tol, step_tol, callback, flat_steps=False
+):
     """The notes' loop (lecture notes, "Algorithm") for any system with ``assemble``,
     ``objective`` and ``update`` — :func:`optimize`'s χ² and :mod:`lagolib.certify`'s chordal
     cost.  Returns ``(x, objective, stop)``, ``stop`` = ``(converged, reason)`` or None when
-    ``max_iterations`` ran out."""
+    ``max_iterations`` ran out.
+
+    ``flat_steps``: a last step that leaves the objective flat (within ``tol``, where rounding
+    decides the sign of the change) is still taken when it shrinks the gradient ``b`` — for
+    :func:`lagolib.certify.refine`, whose certificate reads the multipliers off the gradient."""
     with np.errstate(over="ignore", invalid="ignore"):  # reported by _check_finite_system
         H, b, chi = trace.timed("assembly", system.assemble, x)  # build H and b
     _check_finite_system(system, x, H, b, chi)
@@ -1427,6 +1434,10 @@ def _minimize(system, x, control, solve, trace, max_iterations, tol, step_tol, c
                 break
             if chi_new - chi <= tol * chi:  # no decrease, but no increase worth a retry
                 stop = True, "converged: no step decreases the error by more than tol"
+                if flat_steps:
+                    b_new = trace.timed("assembly", system.assemble, x_new)[1]
+                    if _norm2(b_new) < _norm2(b):  # more stationary: keep it
+                        x, chi = x_new, chi_new
                 break
             floor = getattr(system, "rounding_floor", None)
             if floor is not None and chi_new - chi <= floor(x):

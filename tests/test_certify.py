@@ -6,6 +6,8 @@ sparse shift-and-invert ones; SE-Sync's published optima (Table 1) and lagolib.m
 objective; noiseless graphs recovered exactly.
 """
 
+import warnings
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -461,3 +463,21 @@ def test_sparse_cholesky_refactor_with_a_new_pattern_of_equal_size():
     F.refactor(B)
     rhs = np.array([1.0, 2.0, 3.0])
     np.testing.assert_allclose(F.solve(rhs), np.linalg.solve(B.toarray(), rhs), rtol=1e-14)
+
+
+def test_refine_ends_stationary_where_the_cost_is_flat_to_rounding():
+    """The polish's last Newton step changes ``f`` by less than rounding (it cannot be told to
+    decrease it) yet makes the point stationary; it is kept when it shrinks the gradient, for
+    the certificate reads the multipliers off the gradient (chapter 9's saddle P: before, the
+    polish stopped one step early with ``f - sum(lambda)`` = 9.6e-5)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lagolib.LagolibWarning)
+        man = simulate.manhattan_world(n_poses=500, extent=20, rng=7, sigma_theta=0.2, sigma_xy=0.05)
+        g = man.graph
+        start = lagolib.optimize(g, lagolib.lago_solve(g, margin_warning=0).poses).poses
+    p = C.chordal_problem(g)
+    res = C.refine(p, start)
+    c = C.certify(p, res.poses, eigenvalues=1)
+    assert abs(c.stationarity) < 1e-9 * c.f and c.gradient < 1e-8 * np.abs(c.multipliers).mean()
+    assert res.chi2 == pytest.approx(C.chordal_cost(p, res.poses), rel=1e-15)
+    assert c.eigenvalues[0] < -1.0  # a saddle: the polish must be stationary there too
