@@ -105,42 +105,52 @@ def _diagnose_multipliers(got, M, x, expected):
         "compute M x once (M @ x, a complex vector), take the last n entries of it and of x, "
         "multiply them elementwise with x's conjugated, and keep the real part.",
     )
-    if matches(got, w.imag):
+    tiny = 1e-6 * max(1.0, float(np.abs(expected).max(initial=0.0)))
+
+    def named(candidate):  # a pattern that is zero here cannot be told from another zero one
+        return float(np.abs(candidate).max(initial=0.0)) > tiny and matches(got, candidate)
+
+    if named(w.imag):
         return (
             "you took the imaginary part of conj(z_i) (M x)_{n+i}: that is the gradient of f "
             "along the circle |z_i| = 1, not the multiplier.",
             ("λ_i is the real part.", *levels[1:]),
         )
-    if matches(got, (x[n:] * Mx[n:]).real):
+    if named((x[n:] * Mx[n:]).real):
         return (
             "z_i is not conjugated: Re(z_i (M x)_{n+i}) is not the multiplier (it changes when "
             "the whole graph is rotated).",
             ("multiply by conj(z_i) (np.conj), the complex inner product of z_i with "
              "(M x)_{n+i}.", *levels[1:]),
         )
-    if matches(got, (np.conj(x[:n]) * Mx[:n]).real):
+    if named((np.conj(x[:n]) * Mx[:n]).real):
         return (
             "you used the first n entries of x and M x: those are the translations t_i, which "
             "are not constrained.",
             ("the rotations z_i are x[n:], and their rows of M x are (M x)[n:].", *levels[1:]),
         )
-    if matches(got, np.abs(Mx[n:])):
+    if named(np.abs(Mx[n:])):
         return (
             "you took |(M x)_{n+i}|. At a stationary point that is |λ_i|, but elsewhere (M x)_{n+i} "
             "also has a component along the circle, and the sign of λ_i is lost.",
             ("project (M x)_{n+i} on z_i: Re(conj(z_i) (M x)_{n+i}).", *levels[1:]),
         )
-    if matches(got, 2 * expected):
+    if named(2 * expected):
         return (
             "your multipliers are twice the reference: the gradient of x^H M x is 2 M x, but "
             "the Lagrangian's condition (M − Λ) x = 0 has no factor 2 on either side.",
             ("λ_i = Re(conj(z_i) (M x)_{n+i}), no factor 2.",),
         )
     return problem, (
-        "print your multipliers next to certify.multipliers on the chapter's small problem "
-        "(the cell under the exercise does) and see where they differ.",
+        _GENERIC_MULTIPLIER_HINT,
         *levels,
     )
+
+
+_GENERIC_MULTIPLIER_HINT = (
+    "print your multipliers next to certify.multipliers on the chapter's small problem (the "
+    "cell under the exercise does) and see where they differ."
+)
 
 
 def _complex_multipliers(got, M, x):
@@ -183,6 +193,7 @@ def check_multipliers(multipliers):
     """
     ex = "9.1"
     cases = _multiplier_cases()
+    first = None  # the first failing test's (message, hint) when it names no pattern
     for k, (p, x) in enumerate(cases):
         got, problem = call_student(multipliers, p.M.copy(), x.copy(), name="multipliers")
         if problem == NOT_ATTEMPTED:
@@ -199,8 +210,18 @@ def check_multipliers(multipliers):
             )
         expected = certify.multipliers(p, x)
         problem, hint = _diagnose_multipliers(got, p.M, x, expected)
-        if problem is not None:
-            return verdict(ex, f"on test {k + 1} of {len(cases)} ({where}): " + problem, hint=hint)
+        if problem is None:
+            continue
+        message = f"on test {k + 1} of {len(cases)} ({where}): " + problem
+        if hint[0] != _GENERIC_MULTIPLIER_HINT:  # a wrong answer recognized by name
+            if first is not None:  # it failed earlier too, where it could not be named
+                message = f"{first[0].rstrip('.')}; {message}"
+            return verdict(ex, message, hint=hint)
+        # at the stationary point several wrong answers are all zero: a later test may tell
+        # which one this is
+        first = first or (message, hint)
+    if first is not None:
+        return verdict(ex, first[0], hint=first[1])
     return verdict(
         ex,
         None,
