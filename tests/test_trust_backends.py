@@ -24,7 +24,11 @@ from lagolib.errors import BackendWarning, NotPositiveDefiniteError
 
 HAVE_PARDISO = "pardiso" in linalg.available_backends()
 needs_pardiso = pytest.mark.skipif(not HAVE_PARDISO, reason="MKL is not installed")
-FACTORING = ["qdldl", "scipy"] + (["pardiso"] if HAVE_PARDISO else [])
+FACTORING = (
+    ["qdldl", "scipy"]
+    + (["pardiso"] if HAVE_PARDISO else [])
+    + (["cholmod"] if linalg._have_cholmod() else [])
+)
 
 
 def _chain(n, seed=0):
@@ -225,10 +229,27 @@ def test_gauss_newton_on_long_chains_agrees_on_every_backend(n):
         assert ref.converged, (
             ref.reason
         )  # before: "not converged ... try method='lm'" at chi2 1e-16
-        for backend in FACTORING[1:]:
+        for backend in [b for b in FACTORING[1:] if b != "cholmod"]:  # CHOLMOD: below
             (res, _) = _quiet(lagolib.optimize, h, backend=backend)
             assert res.chi2 <= 1e-12, backend
             assert _rel(res.poses, ref.poses) <= 1e-8, backend
+
+
+@pytest.mark.skipif(not linalg._have_cholmod(), reason="cvxopt (CHOLMOD) is not installed")
+@pytest.mark.xfail(
+    strict=True,
+    reason="known (issue 26): forced onto a 6e4-pose chain from a nudged start, CHOLMOD's "
+    "Gauss-Newton stops one step early at chi2 9e-16 (the rounding floor), poses 1.1e-7 off "
+    "qdldl's; backend='auto' sends chains to qdldl",
+)
+def test_gauss_newton_on_a_long_chain_from_a_nudge_on_cholmod():
+    g = _chain(60_000, seed=2)
+    nudge = 1e-3 * np.cos(np.arange(3 * g.n)).reshape(-1, 3)
+    nudge[0] = 0.0
+    h = g.with_poses(g.poses + nudge)
+    ref = _quiet(lagolib.optimize, h, backend="qdldl")[0]
+    res = _quiet(lagolib.optimize, h, backend="cholmod")[0]
+    assert res.chi2 <= 1e-12 and _rel(res.poses, ref.poses) <= 1e-8
 
 
 @needs_pardiso
