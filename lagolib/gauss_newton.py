@@ -781,9 +781,7 @@ class LinearSystem:
         np.add.at(data, self._slot_p.ravel(), Mp.ravel())
         np.add.at(b, self._rows_b_p.ravel(), np.einsum("kab,ka->kb", OJp, ep).ravel())
         objective += float(np.einsum("ka,kab,kb->", ep, self._prior_info, ep))
-        H = sp.csr_matrix((data[: self.nnz], self._indices, self._indptr), shape=(self.N, self.N))
-        H.has_canonical_format = True  # sorted, no duplicates by construction: spares the
-        # backends an O(nnz) check
+        H = self._on_pattern(data[: self.nnz])
         b = b[: self.N]
         return H, b, objective
 
@@ -791,9 +789,13 @@ class LinearSystem:
         """``H + lam I`` (Levenberg's damping), same pattern."""
         data = H.data.copy()
         data[self._diag_slot] += lam
-        D = sp.csr_matrix((data, self._indices, self._indptr), shape=H.shape)
-        D.has_canonical_format = True
-        return D
+        return self._on_pattern(data)
+
+    def _on_pattern(self, data):
+        """The (N, N) CSR matrix with ``data`` on this system's frozen pattern."""
+        H = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.N, self.N))
+        H.has_canonical_format = True  # sorted, no duplicates by construction: spares the
+        return H  # backends an O(nnz) check
 
     def rounding_floor(self, poses):
         """How far the objective at ``poses`` can move from floating-point rounding alone.
